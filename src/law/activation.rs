@@ -1,0 +1,71 @@
+//! Activation dynamics (paper eq 9–10, MODEL_NOTES "Activation").
+//!
+//! Eq 9–10 is first-order dynamics da/dt = S (u − a) for a square command u.
+
+/// Activation level after a step of length `h` from level `a0`, for the
+/// command u(τ) = u0 + u_dot τ over the step (exact solution of
+/// da/dt = S (u − a)):
+/// a(h) = u0 + u_dot h − u_dot/S + (a0 − u0 + u_dot/S) e^(−S h).
+/// With `u_dot = 0` this is a(h) = u0 + (a0 − u0) e^(−S h) (MODEL_NOTES).
+/// Returns the level (clamped to [0, 1]) and ∂a(h)/∂u0 = 1 − e^(−S h).
+pub fn activation_step(a0: f64, u0: f64, u_dot: f64, s: f64, h: f64) -> (f64, f64) {
+    let e = (-s * h).exp();
+    let a = if u_dot == 0.0 {
+        u0 + (a0 - u0) * e
+    } else {
+        let r = u_dot / s;
+        u0 + u_dot * h - r + (a0 - u0 + r) * e
+    };
+    let d = 1.0 - e;
+    if a < 0.0 {
+        (0.0, 0.0)
+    } else if a > 1.0 {
+        (1.0, 0.0)
+    } else {
+        (a, d)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exact_for_held_input_and_composable() {
+        // One step of 0.1 s equals ten steps of 0.01 s (exactness), and the
+        // rise from 0 with u = 1 is 1 − e^(−S t).
+        let s = 50.0;
+        let mut a = 0.0;
+        for _ in 0..10 {
+            a = activation_step(a, 1.0, 0.0, s, 0.01).0;
+        }
+        let one = activation_step(0.0, 1.0, 0.0, s, 0.1).0;
+        assert!((a - one).abs() < 1e-14);
+        assert!((one - (1.0 - (-5.0f64).exp())).abs() < 1e-15);
+        // Huge S h: lands on the command, no overshoot.
+        assert_eq!(activation_step(0.3, 0.7, 0.0, 1e5, 1.0).0, 0.7);
+    }
+
+    #[test]
+    fn linear_input_matches_fine_integration() {
+        let (s, a0, u0, ud, h) = (50.0, 0.2, 0.1, 3.0, 0.2);
+        let n = 200_000;
+        let dt = h / n as f64;
+        let mut a = a0;
+        for i in 0..n {
+            // Exact update for the input held at its midpoint value.
+            let u = u0 + ud * (i as f64 + 0.5) * dt;
+            a = u + (a - u) * (-s * dt).exp();
+        }
+        let exact = activation_step(a0, u0, ud, s, h).0;
+        assert!((a - exact).abs() < 1e-9, "{a} vs {exact}");
+    }
+
+    #[test]
+    fn derivative_wrt_command() {
+        let (a, da) = activation_step(0.2, 0.5, 0.0, 50.0, 0.01);
+        let h = 1e-7;
+        let fd = (activation_step(0.2, 0.5 + h, 0.0, 50.0, 0.01).0 - a) / h;
+        assert!((fd - da).abs() < 1e-7);
+    }
+}

@@ -1,0 +1,94 @@
+//! Force-velocity relation f_v (paper eq 12 as restated in MODEL_NOTES "Hill fibre").
+
+/// f_v(λ̇m) and d f_v / d λ̇m, with x = λ̇m / λ̇_m^min (x > 0 when shortening):
+/// - shortening (λ̇m ≤ 0): f_v = (1 − x) / (1 + k_c x), and 0 for x ≥ 1;
+/// - lengthening (λ̇m > 0): f_v = d − (d − 1)(1 + x) / (1 − k_e k_c x).
+///
+/// f_v(0) = 1, f_v is non-decreasing in λ̇m and tends to d + (d − 1)/(k_e k_c).
+pub fn force_velocity(
+    lambda_dot_m: f64,
+    lambda_dot_min: f64,
+    kc: f64,
+    ke: f64,
+    d: f64,
+) -> (f64, f64) {
+    let x = lambda_dot_m / lambda_dot_min;
+    let dx = 1.0 / lambda_dot_min;
+    if lambda_dot_m <= 0.0 {
+        if x >= 1.0 {
+            (0.0, 0.0)
+        } else {
+            let den = 1.0 + kc * x;
+            // d/dx (1 − x)/(1 + kc x) = −(1 + kc)/(1 + kc x)²
+            ((1.0 - x) / den, -(1.0 + kc) / (den * den) * dx)
+        }
+    } else {
+        let kk = ke * kc;
+        let den = 1.0 - kk * x;
+        // d/dx (1 + x)/(1 − kk x) = (1 + kk)/(1 − kk x)²
+        (
+            d - (d - 1.0) * (1.0 + x) / den,
+            -(d - 1.0) * (1.0 + kk) / (den * den) * dx,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MIN: f64 = -17.0;
+
+    fn fv(r: f64) -> (f64, f64) {
+        force_velocity(r, MIN, 5.0, 5.0, 1.5)
+    }
+
+    #[test]
+    fn isometric_value_is_one_on_both_sides() {
+        assert_eq!(fv(0.0).0, 1.0);
+        assert!((fv(1e-12).0 - 1.0).abs() < 1e-12);
+        assert!((fv(-1e-12).0 - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn monotone_and_bounded_with_limits() {
+        let fmax = 1.5 + 0.5 / 25.0;
+        let mut prev = -1.0;
+        for i in 0..=4000 {
+            let r = -30.0 + 60.0 * i as f64 / 4000.0;
+            let (f, df) = fv(r);
+            assert!(f >= prev - 1e-15, "not monotone at {r}");
+            assert!(df >= 0.0);
+            assert!((0.0..=fmax).contains(&f));
+            prev = f;
+        }
+        assert_eq!(fv(MIN).0, 0.0);
+        assert_eq!(fv(2.0 * MIN).0, 0.0);
+        assert!((fv(1e9).0 - fmax).abs() < 1e-6);
+    }
+
+    #[test]
+    fn derivative_matches_finite_differences() {
+        for &(kc, ke, d) in &[
+            (5.0, 5.0, 1.5),
+            (4.0, 3.14, 1.1),
+            (5.88, 7.56, 1.8),
+            (5.0, 5.0, 1.0),
+        ] {
+            for i in 0..200 {
+                let r = -16.5 + 40.0 * (i as f64 + 0.5) / 200.0;
+                if r.abs() < 1e-3 {
+                    continue;
+                }
+                let h = 1e-6;
+                let f = |r| force_velocity(r, MIN, kc, ke, d).0;
+                let fd = (f(r + h) - f(r - h)) / (2.0 * h);
+                let an = force_velocity(r, MIN, kc, ke, d).1;
+                assert!(
+                    (fd - an).abs() < 1e-6 * (1.0 + an.abs()),
+                    "r={r} fd={fd} an={an}"
+                );
+            }
+        }
+    }
+}

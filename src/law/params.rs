@@ -1,0 +1,424 @@
+//! The 14 material parameters of the law (MODEL_NOTES "Parameters", paper Table 2),
+//! their defaults, units and valid ranges, validated as a whole.
+
+use std::fmt;
+
+/// Identifies one law parameter. The order is the order of MODEL_NOTES' table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ParamId {
+    B,
+    C,
+    Alpha,
+    Beta,
+    A,
+    Sigma0,
+    S,
+    Kc,
+    Ke,
+    D,
+    LambdaDotMin,
+    LambdaOpt,
+    Dcomp,
+    K,
+}
+
+/// Valid range of a parameter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Range {
+    /// `x > 0`
+    Positive,
+    /// `x >= lo`
+    AtLeast(f64),
+    /// `x < 0`
+    Negative,
+}
+
+impl Range {
+    /// Whether the (finite) value lies in the range.
+    pub fn contains(self, x: f64) -> bool {
+        x.is_finite()
+            && match self {
+                Range::Positive => x > 0.0,
+                Range::AtLeast(lo) => x >= lo,
+                Range::Negative => x < 0.0,
+            }
+    }
+}
+
+impl fmt::Display for Range {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Range::Positive => write!(f, "finite and > 0"),
+            Range::AtLeast(lo) => write!(f, "finite and >= {lo}"),
+            Range::Negative => write!(f, "finite and < 0"),
+        }
+    }
+}
+
+/// Name, default, unit, valid range and meaning of one parameter.
+#[derive(Clone, Copy, Debug)]
+pub struct ParamInfo {
+    pub id: ParamId,
+    /// The name used in code and in the FMUs (MODEL_NOTES "name in code/FMU").
+    pub name: &'static str,
+    pub default: f64,
+    /// Unit name as declared in the FMUs' UnitDefinitions ("1" when dimensionless).
+    pub unit: &'static str,
+    pub range: Range,
+    pub description: &'static str,
+}
+
+/// The parameter table: the single source of names, defaults, units and ranges.
+pub const PARAMETERS: [ParamInfo; 14] = [
+    ParamInfo {
+        id: ParamId::B,
+        name: "b",
+        default: 23.46,
+        unit: "1",
+        range: Range::Positive,
+        description: "Matrix exponent b of U_I = c (exp(b (I1bar - 3)) - 1)",
+    },
+    ParamInfo {
+        id: ParamId::C,
+        name: "c",
+        default: 379.0,
+        unit: "Pa",
+        range: Range::Positive,
+        description: "Matrix stiffness c",
+    },
+    ParamInfo {
+        id: ParamId::Alpha,
+        name: "alpha",
+        default: 10.0,
+        unit: "1",
+        range: Range::Positive,
+        description: "SEE exponent alpha (eq 6)",
+    },
+    ParamInfo {
+        id: ParamId::Beta,
+        name: "beta",
+        default: 1.0e3,
+        unit: "Pa",
+        range: Range::Positive,
+        description: "SEE stress offset beta (eq 6)",
+    },
+    ParamInfo {
+        id: ParamId::A,
+        name: "A",
+        default: 4.0,
+        unit: "1",
+        range: Range::AtLeast(0.0),
+        description: "PE coefficient A (eq 22-23)",
+    },
+    ParamInfo {
+        id: ParamId::Sigma0,
+        name: "sigma0",
+        default: 7.0e5,
+        unit: "Pa",
+        range: Range::Positive,
+        description: "Maximum isometric stress sigma0 (paper range 0.16-1.0 MPa)",
+    },
+    ParamInfo {
+        id: ParamId::S,
+        name: "S",
+        default: 50.0,
+        unit: "1/s",
+        range: Range::Positive,
+        description: "Activation rate S (eq 9-10)",
+    },
+    ParamInfo {
+        id: ParamId::Kc,
+        name: "kc",
+        default: 5.0,
+        unit: "1",
+        range: Range::Positive,
+        description: "Concentric force-velocity shape k_c (paper range 4.0-5.88)",
+    },
+    ParamInfo {
+        id: ParamId::Ke,
+        name: "ke",
+        default: 5.0,
+        unit: "1",
+        range: Range::Positive,
+        description: "Eccentric force-velocity shape k_e (paper range 3.14-7.56)",
+    },
+    ParamInfo {
+        id: ParamId::D,
+        name: "d",
+        default: 1.5,
+        unit: "1",
+        range: Range::AtLeast(1.0),
+        description: "Eccentric force-velocity offset d (paper range 1.1-1.8)",
+    },
+    ParamInfo {
+        id: ParamId::LambdaDotMin,
+        name: "lambda_dot_min",
+        default: -17.0,
+        unit: "1/s",
+        range: Range::Negative,
+        description: "Minimum (most negative) CE stretch rate",
+    },
+    ParamInfo {
+        id: ParamId::LambdaOpt,
+        name: "lambda_opt",
+        default: 1.05,
+        unit: "1",
+        range: Range::Positive,
+        description: "Optimal fibre stretch (eq 11)",
+    },
+    ParamInfo {
+        id: ParamId::Dcomp,
+        name: "D",
+        default: 1.0e-9,
+        unit: "1/Pa",
+        range: Range::Positive,
+        description: "Compressibility D (bulk modulus 2/D)",
+    },
+    ParamInfo {
+        id: ParamId::K,
+        name: "k",
+        default: 0.3,
+        unit: "1",
+        range: Range::Positive,
+        description: "SEE-to-CE rest length ratio k = L_SEE,0 / L_CE,0",
+    },
+];
+
+/// An invalid parameter value: names the parameter, the value and the valid range.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamError {
+    pub name: &'static str,
+    pub value: f64,
+    pub range: Range,
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "parameter {} = {} is out of range: must be {}",
+            self.name, self.value, self.range
+        )
+    }
+}
+
+impl std::error::Error for ParamError {}
+
+/// The material parameters (MODEL_NOTES "Parameters"; SI units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    /// Matrix exponent b.
+    pub b: f64,
+    /// Matrix stiffness c [Pa].
+    pub c: f64,
+    /// SEE exponent α.
+    pub alpha: f64,
+    /// SEE stress offset β [Pa].
+    pub beta: f64,
+    /// PE coefficient A.
+    pub a_pe: f64,
+    /// Maximum isometric stress σ0 [Pa].
+    pub sigma0: f64,
+    /// Activation rate S [1/s].
+    pub s: f64,
+    /// Concentric f-v shape k_c.
+    pub kc: f64,
+    /// Eccentric f-v shape k_e.
+    pub ke: f64,
+    /// Eccentric f-v offset d.
+    pub d: f64,
+    /// Minimum CE stretch rate λ̇_m^min [1/s] (negative).
+    pub lambda_dot_min: f64,
+    /// Optimal fibre stretch λ_opt.
+    pub lambda_opt: f64,
+    /// Compressibility D [1/Pa].
+    pub d_comp: f64,
+    /// SEE-to-CE rest length ratio k.
+    pub k: f64,
+}
+
+impl Default for Params {
+    /// Paper Table 2 defaults (MODEL_NOTES "Parameters").
+    fn default() -> Self {
+        let mut p = Params {
+            b: 0.0,
+            c: 0.0,
+            alpha: 0.0,
+            beta: 0.0,
+            a_pe: 0.0,
+            sigma0: 0.0,
+            s: 0.0,
+            kc: 0.0,
+            ke: 0.0,
+            d: 0.0,
+            lambda_dot_min: 0.0,
+            lambda_opt: 0.0,
+            d_comp: 0.0,
+            k: 0.0,
+        };
+        for info in &PARAMETERS {
+            *p.get_mut(info.id) = info.default;
+        }
+        p
+    }
+}
+
+impl Params {
+    /// The table row of a parameter.
+    pub fn info(id: ParamId) -> &'static ParamInfo {
+        PARAMETERS
+            .iter()
+            .find(|p| p.id == id)
+            .expect("every ParamId has a row in PARAMETERS")
+    }
+
+    /// Value of one parameter.
+    pub fn get(&self, id: ParamId) -> f64 {
+        match id {
+            ParamId::B => self.b,
+            ParamId::C => self.c,
+            ParamId::Alpha => self.alpha,
+            ParamId::Beta => self.beta,
+            ParamId::A => self.a_pe,
+            ParamId::Sigma0 => self.sigma0,
+            ParamId::S => self.s,
+            ParamId::Kc => self.kc,
+            ParamId::Ke => self.ke,
+            ParamId::D => self.d,
+            ParamId::LambdaDotMin => self.lambda_dot_min,
+            ParamId::LambdaOpt => self.lambda_opt,
+            ParamId::Dcomp => self.d_comp,
+            ParamId::K => self.k,
+        }
+    }
+
+    fn get_mut(&mut self, id: ParamId) -> &mut f64 {
+        match id {
+            ParamId::B => &mut self.b,
+            ParamId::C => &mut self.c,
+            ParamId::Alpha => &mut self.alpha,
+            ParamId::Beta => &mut self.beta,
+            ParamId::A => &mut self.a_pe,
+            ParamId::Sigma0 => &mut self.sigma0,
+            ParamId::S => &mut self.s,
+            ParamId::Kc => &mut self.kc,
+            ParamId::Ke => &mut self.ke,
+            ParamId::D => &mut self.d,
+            ParamId::LambdaDotMin => &mut self.lambda_dot_min,
+            ParamId::LambdaOpt => &mut self.lambda_opt,
+            ParamId::Dcomp => &mut self.d_comp,
+            ParamId::K => &mut self.k,
+        }
+    }
+
+    /// Set one parameter after checking it against its range; on error `self`
+    /// is unchanged.
+    pub fn set(&mut self, id: ParamId, value: f64) -> Result<(), ParamError> {
+        Self::check(id, value)?;
+        *self.get_mut(id) = value;
+        Ok(())
+    }
+
+    /// Check one value against the range of parameter `id`.
+    pub fn check(id: ParamId, value: f64) -> Result<(), ParamError> {
+        let info = Self::info(id);
+        if info.range.contains(value) {
+            Ok(())
+        } else {
+            Err(ParamError {
+                name: info.name,
+                value,
+                range: info.range,
+            })
+        }
+    }
+
+    /// Validate the whole set (every parameter in its range); reports the first
+    /// offender in table order.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        PARAMETERS
+            .iter()
+            .try_for_each(|info| Self::check(info.id, self.get(info.id)))
+    }
+
+    /// Construct from explicit values, validated.
+    pub fn new_validated(p: Params) -> Result<Params, ParamError> {
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// Asymptote of the force-velocity curve for fast lengthening,
+    /// d + (d − 1)/(k_e k_c) (MODEL_NOTES "Hill fibre").
+    pub fn fv_max(&self) -> f64 {
+        self.d + (self.d - 1.0) / (self.ke * self.kc)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_table_2_and_valid() {
+        let p = Params::default();
+        assert_eq!(p.b, 23.46);
+        assert_eq!(p.c, 379.0);
+        assert_eq!(p.alpha, 10.0);
+        assert_eq!(p.beta, 1.0e3);
+        assert_eq!(p.a_pe, 4.0);
+        assert_eq!(p.sigma0, 7.0e5);
+        assert_eq!(p.s, 50.0);
+        assert_eq!(p.kc, 5.0);
+        assert_eq!(p.ke, 5.0);
+        assert_eq!(p.d, 1.5);
+        assert_eq!(p.lambda_dot_min, -17.0);
+        assert_eq!(p.lambda_opt, 1.05);
+        assert_eq!(p.d_comp, 1.0e-9);
+        assert_eq!(p.k, 0.3);
+        assert!(p.validate().is_ok());
+    }
+
+    #[test]
+    fn every_bad_value_is_rejected_with_name_and_range() {
+        let bad: &[(ParamId, f64)] = &[
+            (ParamId::B, 0.0),
+            (ParamId::C, -1.0),
+            (ParamId::Alpha, 0.0),
+            (ParamId::Beta, 0.0),
+            (ParamId::A, -0.1),
+            (ParamId::Sigma0, 0.0),
+            (ParamId::S, 0.0),
+            (ParamId::Kc, 0.0),
+            (ParamId::Ke, -2.0),
+            (ParamId::D, 0.99),
+            (ParamId::LambdaDotMin, 0.0),
+            (ParamId::LambdaOpt, 0.0),
+            (ParamId::Dcomp, 0.0),
+            (ParamId::K, 0.0),
+        ];
+        for &(id, v) in bad {
+            for value in [v, f64::NAN, f64::INFINITY] {
+                let mut p = Params::default();
+                let before = p;
+                let err = p.set(id, value).unwrap_err();
+                assert_eq!(p, before, "a rejected set must change nothing");
+                let msg = err.to_string();
+                assert!(msg.contains(Params::info(id).name), "{msg}");
+                assert!(msg.contains("must be"), "{msg}");
+                // The whole-set validator catches the same value.
+                *p.get_mut(id) = value;
+                assert_eq!(p.validate().unwrap_err().name, Params::info(id).name);
+            }
+        }
+    }
+
+    #[test]
+    fn names_are_unique() {
+        for (i, a) in PARAMETERS.iter().enumerate() {
+            for b in &PARAMETERS[i + 1..] {
+                assert_ne!(a.name, b.name);
+                assert_ne!(a.id, b.id);
+            }
+        }
+    }
+}

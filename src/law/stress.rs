@@ -1,0 +1,415 @@
+//! 3D stress and consistent spatial tangent of the law
+//! (MODEL_NOTES "Kinematics", "Energy and stress"; paper eq 24–30).
+//!
+//! The energy is written in the invariants Ī1, Ī4 = λ̄f² and J:
+//! U = U_I(Ī1) + U_f(√Ī4) + U_J(J), uncoupled as in Weiss, Maker & Govindjee (1996).
+//! With ψ_x = ∂U/∂x: ψ_1 = U_I', ψ_4 = W / (2 λ̄f), ψ_J = U_J', where
+//! W = ∂U_f/∂λ̄f is the fibre nominal stress of [`super::hill_fibre`].
+//!
+//! **Stress.** S = 2 ∂U/∂C = 2 Σ ψ_x ∂x/∂C with
+//! ∂Ī/∂C = J^(−2/3) G − (Ī/3) C⁻¹ (G = I for Ī1, G = A⊗A for Ī4) and
+//! ∂J/∂C = (J/2) C⁻¹. Pushed forward (F · Fᵀ), with B̄ = J^(−2/3) F Fᵀ,
+//! Ḡ4 = J^(−2/3) FA⊗FA = λ̄f² a⊗a, the structural tensors are
+//! n1 = dev B̄, n4 = λ̄f² dev(a⊗a), nJ = (J/2) I, and the Kirchhoff stress is
+//!
+//! τ = J σ = 2 U_I' dev B̄ + λ̄f W dev(a⊗a) + J U_J' I,
+//!
+//! which is eq 30 (MODEL_NOTES form) times J. (Eq 24 of the paper has typos and
+//! is not used.)
+//!
+//! **Tangent.** ℂ = 4 ∂²U/∂C∂C = 4 Σ ψ_xy ∂x/∂C ⊗ ∂y/∂C + 4 Σ ψ_x ∂²x/∂C∂C.
+//! With ∂C⁻¹/∂C = −𝕀_{C⁻¹}, the push-forwards are
+//! F⋆(∂²Ī/∂C∂C) = −(1/3)(Ḡ⊗I + I⊗Ḡ) + (1/9) Ī I⊗I + (1/3) Ī 𝕀 and
+//! F⋆(∂²J/∂C∂C) = (J/4) I⊗I − (J/2) 𝕀 (𝕀 the symmetric identity), so
+//!
+//! J c = 4 U_I'' n1⊗n1 + 4 U_I' [−(1/3)(B̄⊗I + I⊗B̄) + (1/9) Ī1 I⊗I + (1/3) Ī1 𝕀]
+//!     + 4 ψ_44 n4⊗n4 + 4 ψ_4 [−(1/3)(Ḡ4⊗I + I⊗Ḡ4) + (1/9) λ̄f² I⊗I + (1/3) λ̄f² 𝕀]
+//!     + J² U_J'' I⊗I + J U_J' (I⊗I − 2 𝕀),
+//!
+//! with ψ_44 = ∂ψ_4/∂Ī4 = (λ̄f W' − W) / (4 λ̄f³), where W' = dW/dλ̄f is the
+//! consistent (algorithmic) derivative through the CE–SEE solve, so the
+//! tangent is exact for the step map with the history fixed. c relates the
+//! Lie derivative of τ to the rate of deformation: L_v τ = J c : d. For a
+//! variation δF = g F (d = sym g) that gives δτ = J c : d + g τ + τ gᵀ, which
+//! is what [`LawPoint::kirchhoff_variation`] returns and the tests check
+//! against finite differences.
+
+use nalgebra::{Matrix3, Matrix6, Vector3};
+
+use super::hill_fibre::{fibre_response, FibreHistory, FibreRate, FibreResponse};
+use super::isotropic_matrix::matrix_derivatives;
+use super::params::Params;
+use super::volumetric::volumetric_derivatives;
+
+/// Deviator dev X = X − (tr X / 3) I.
+#[inline]
+pub fn dev(x: &Matrix3<f64>) -> Matrix3<f64> {
+    x - Matrix3::identity() * (x.trace() / 3.0)
+}
+
+/// The law evaluated at one material point at the end of a step: kinematic
+/// quantities, scalar energy derivatives and the fibre response.
+#[derive(Clone, Debug)]
+pub struct LawPoint {
+    /// J = det F.
+    pub j: f64,
+    /// Isochoric left Cauchy–Green tensor B̄ = J^(−2/3) F Fᵀ.
+    pub b_bar: Matrix3<f64>,
+    /// Ī1 = tr C̄ = tr B̄.
+    pub i1_bar: f64,
+    /// Modified fibre stretch λ̄f = √(A·C̄A).
+    pub lambda_f: f64,
+    /// Unit deformed fibre direction a = J^(−1/3) F A / λ̄f.
+    pub a: Vector3<f64>,
+    /// (U_I', U_I'').
+    pub du_i: (f64, f64),
+    /// (U_J', U_J'').
+    pub du_j: (f64, f64),
+    /// W, dW/dλ̄f, ∂W/∂a, the new history.
+    pub fibre: FibreResponse,
+}
+
+impl LawPoint {
+    /// Evaluate the law at deformation gradient `f` (J > 0), reference unit
+    /// fibre direction `fibre_dir`, activation level `activation`, fibre
+    /// history at the start of the step `hist` and the rate mode `rate`
+    /// (MODEL_NOTES "Kinematics").
+    pub fn new(
+        p: &Params,
+        f: &Matrix3<f64>,
+        fibre_dir: &Vector3<f64>,
+        activation: f64,
+        hist: &FibreHistory,
+        rate: FibreRate,
+    ) -> LawPoint {
+        let j = f.determinant();
+        let jm13 = j.cbrt().recip();
+        let b_bar = (f * f.transpose()) * (jm13 * jm13);
+        let i1_bar = b_bar.trace();
+        let fa = f * fibre_dir * jm13; // J^(−1/3) F A
+        let lambda_f = fa.norm();
+        let a = fa / lambda_f;
+        let fibre = fibre_response(p, lambda_f, activation, hist, rate);
+        LawPoint {
+            j,
+            b_bar,
+            i1_bar,
+            lambda_f,
+            a,
+            du_i: matrix_derivatives(i1_bar, p.b, p.c),
+            du_j: volumetric_derivatives(j, p.d_comp),
+            fibre,
+        }
+    }
+
+    /// a ⊗ a.
+    fn a_outer(&self) -> Matrix3<f64> {
+        self.a * self.a.transpose()
+    }
+
+    /// Isochoric (deviatoric) Kirchhoff stress τ_iso = 2 U_I' dev B̄ + λ̄f W dev(a⊗a).
+    pub fn kirchhoff_isochoric(&self) -> Matrix3<f64> {
+        dev(&self.b_bar) * (2.0 * self.du_i.0)
+            + dev(&self.a_outer()) * (self.lambda_f * self.fibre.w)
+    }
+
+    /// Kirchhoff stress τ = J σ (eq 30 times J).
+    pub fn kirchhoff(&self) -> Matrix3<f64> {
+        self.kirchhoff_isochoric() + Matrix3::identity() * (self.j * self.du_j.0)
+    }
+
+    /// Cauchy stress σ = (1/J) [2 U_I' dev B̄ + λ̄f W dev(a⊗a)] + U_J' I (eq 30).
+    pub fn cauchy(&self) -> Matrix3<f64> {
+        self.kirchhoff() / self.j
+    }
+
+    /// J c : d for a symmetric `d` (module docs, "Tangent").
+    pub fn tangent_apply(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
+        let id = Matrix3::identity();
+        let tr_d = d.trace();
+        let (u1, u11) = self.du_i;
+        let (uj, ujj) = self.du_j;
+        let (lf, w, dw) = (self.lambda_f, self.fibre.w, self.fibre.dw_dlambda);
+        let i4 = lf * lf;
+        let psi4 = w / (2.0 * lf);
+        let psi44 = (lf * dw - w) / (4.0 * lf * lf * lf);
+        let n1 = dev(&self.b_bar);
+        let g4 = self.a_outer() * i4;
+        let n4 = dev(&g4);
+        // Push-forward of ∂²Ī/∂C∂C applied to d.
+        let second = |g: &Matrix3<f64>, ibar: f64| -> Matrix3<f64> {
+            (g * tr_d + id * g.dot(d)) * (-1.0 / 3.0) + id * (ibar * tr_d / 9.0) + d * (ibar / 3.0)
+        };
+        let j = self.j;
+        n1 * (4.0 * u11 * n1.dot(d))
+            + second(&self.b_bar, self.i1_bar) * (4.0 * u1)
+            + n4 * (4.0 * psi44 * n4.dot(d))
+            + second(&g4, i4) * (4.0 * psi4)
+            + id * (j * j * ujj * tr_d)
+            + (id * tr_d - d * 2.0) * (j * uj)
+    }
+
+    /// Variation of the Kirchhoff stress for δF = g F:
+    /// δτ = J c : sym(g) + g τ + τ gᵀ (module docs).
+    pub fn kirchhoff_variation(&self, g: &Matrix3<f64>) -> Matrix3<f64> {
+        let tau = self.kirchhoff();
+        let d = (g + g.transpose()) * 0.5;
+        self.tangent_apply(&d) + g * tau + tau * g.transpose()
+    }
+
+    /// ∂τ/∂a at fixed F: λ̄f (∂W/∂a) dev(a⊗a).
+    pub fn kirchhoff_activation_derivative(&self) -> Matrix3<f64> {
+        dev(&self.a_outer()) * (self.lambda_f * self.fibre.dw_dactivation)
+    }
+
+    /// The spatial tangent J c in Voigt notation, order (11, 22, 33, 12, 23, 13),
+    /// acting on strain vectors with engineering shears (2 d_12, 2 d_23, 2 d_13).
+    /// Symmetric (the law has an energy at fixed history).
+    pub fn spatial_tangent_voigt(&self) -> Matrix6<f64> {
+        const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)];
+        let mut out = Matrix6::zeros();
+        for (col, &(k, l)) in PAIRS.iter().enumerate() {
+            let mut d = Matrix3::zeros();
+            if k == l {
+                d[(k, l)] = 1.0;
+            } else {
+                d[(k, l)] = 0.5;
+                d[(l, k)] = 0.5;
+            }
+            let r = self.tangent_apply(&d);
+            for (row, &(i, j)) in PAIRS.iter().enumerate() {
+                out[(row, col)] = r[(i, j)];
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::isotropic_matrix::matrix_energy;
+    use super::super::volumetric::volumetric_energy;
+    use super::*;
+
+    /// Energy of the hyperelastic parts with the passive fibre (a = 0): the PE
+    /// energy is U_PE = σ0 A (λ̄f − 1)³ / 3 for λ̄f > 1.
+    fn passive_energy(p: &Params, f: &Matrix3<f64>, dir: &Vector3<f64>) -> f64 {
+        let j = f.determinant();
+        let c = f.transpose() * f;
+        let i1 = j.powf(-2.0 / 3.0) * c.trace();
+        let lf = (j.powf(-2.0 / 3.0) * dir.dot(&(c * dir))).sqrt();
+        let upe = if lf > 1.0 {
+            p.sigma0 * p.a_pe * (lf - 1.0).powi(3) / 3.0
+        } else {
+            0.0
+        };
+        matrix_energy(i1, p.b, p.c) + upe + volumetric_energy(j, p.d_comp)
+    }
+
+    fn sample_f(seed: u64) -> Matrix3<f64> {
+        let mut s = seed;
+        let mut r = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut f: Matrix3<f64> = Matrix3::identity();
+        for i in 0..3 {
+            for j in 0..3 {
+                f[(i, j)] += 0.3 * r();
+            }
+        }
+        // Mostly isochoric with a small volume change, as the law imposes.
+        let j = f.determinant();
+        f * (j.cbrt().recip() * (1.0 + 0.02 * r()))
+    }
+
+    #[test]
+    fn stress_is_the_derivative_of_the_energy() {
+        // P = ∂U/∂F (first Piola–Kirchhoff) = τ F⁻ᵀ; central differences.
+        let mut p = Params::default();
+        p.d_comp = 1e-4; // keep the volumetric term commensurate with the rest for FD accuracy
+        let dir = Vector3::new(1.0, 0.0, 0.0);
+        for seed in 1..40u64 {
+            let f = sample_f(seed * 7919);
+            let pt = LawPoint::new(&p, &f, &dir, 0.0, &FibreHistory::REST, FibreRate::Isometric);
+            let piola = pt.kirchhoff() * f.try_inverse().unwrap().transpose();
+            let h = 1e-7;
+            for i in 0..3 {
+                for j in 0..3 {
+                    let mut fp = f;
+                    fp[(i, j)] += h;
+                    let mut fm = f;
+                    fm[(i, j)] -= h;
+                    let fd =
+                        (passive_energy(&p, &fp, &dir) - passive_energy(&p, &fm, &dir)) / (2.0 * h);
+                    let scale = piola.norm().max(1.0);
+                    assert!(
+                        (fd - piola[(i, j)]).abs() < 1e-6 * scale,
+                        "seed {seed} P[{i}{j}]: fd {fd} vs {}",
+                        piola[(i, j)]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cauchy_is_eq_30_and_symmetric() {
+        let p = Params::default();
+        let dir = Vector3::new(0.0, 0.6, 0.8);
+        let f = sample_f(42);
+        let pt = LawPoint::new(&p, &f, &dir, 0.7, &FibreHistory::REST, FibreRate::Isometric);
+        let s = pt.cauchy();
+        assert!((s - s.transpose()).norm() < 1e-9 * s.norm());
+        let id = Matrix3::identity();
+        let eq30 = (dev(&pt.b_bar) * (2.0 * pt.du_i.0)
+            + dev(&(pt.a * pt.a.transpose())) * (pt.lambda_f * pt.fibre.w))
+            / pt.j
+            + id * pt.du_j.0;
+        assert!((s - eq30).norm() <= 1e-12 * s.norm());
+    }
+
+    /// δτ vs finite differences of τ along δF = g F, for the full law with an
+    /// active, rate-dependent fibre (history fixed).
+    fn check_tangent(
+        p: &Params,
+        f: &Matrix3<f64>,
+        dir: &Vector3<f64>,
+        act: f64,
+        hist: &FibreHistory,
+        rate: FibreRate,
+    ) {
+        let pt = LawPoint::new(p, f, dir, act, hist, rate);
+        let tau_at = |ff: &Matrix3<f64>| LawPoint::new(p, ff, dir, act, hist, rate).kirchhoff();
+        let mut seed = 99u64;
+        for _ in 0..6 {
+            let g = sample_f(seed) - Matrix3::identity();
+            seed += 1;
+            let e = 1e-7;
+            let fd = (tau_at(&((Matrix3::identity() + g * e) * f))
+                - tau_at(&((Matrix3::identity() - g * e) * f)))
+                / (2.0 * e);
+            let an = pt.kirchhoff_variation(&g);
+            let scale = an.norm().max(fd.norm());
+            assert!(
+                (fd - an).norm() < 2e-5 * scale,
+                "tangent mismatch: fd\n{fd}\nanalytic\n{an}"
+            );
+        }
+        // Voigt form agrees with the tensor form and is symmetric.
+        let c = pt.spatial_tangent_voigt();
+        assert!((c - c.transpose()).norm() < 1e-9 * c.norm());
+        let d = Matrix3::new(0.3, 0.1, -0.2, 0.1, -0.5, 0.05, -0.2, 0.05, 0.2);
+        let dv = nalgebra::Vector6::new(
+            d[(0, 0)],
+            d[(1, 1)],
+            d[(2, 2)],
+            2.0 * d[(0, 1)],
+            2.0 * d[(1, 2)],
+            2.0 * d[(0, 2)],
+        );
+        let r = pt.tangent_apply(&d);
+        let rv = c * dv;
+        let rt = nalgebra::Vector6::new(
+            r[(0, 0)],
+            r[(1, 1)],
+            r[(2, 2)],
+            r[(0, 1)],
+            r[(1, 2)],
+            r[(0, 2)],
+        );
+        assert!((rv - rt).norm() < 1e-9 * rt.norm());
+    }
+
+    #[test]
+    fn tangent_matches_finite_differences() {
+        let mut p = Params::default();
+        p.d_comp = 1e-5; // FD of a 2 GPa bulk term against kPa shear loses digits; the law is the same
+        let dir = Vector3::new(1.0, 0.0, 0.0);
+        for seed in [3u64, 17, 29, 101] {
+            let f = sample_f(seed);
+            // Passive.
+            check_tangent(&p, &f, &dir, 0.0, &FibreHistory::REST, FibreRate::Isometric);
+            // Active, isometric equilibrium.
+            check_tangent(&p, &f, &dir, 0.8, &FibreHistory::REST, FibreRate::Isometric);
+            // Active, a rate-dependent step with history (lengthening and shortening).
+            let lf_guess = (f * dir).norm();
+            for dm in [-0.01, 0.01] {
+                let hist = FibreHistory {
+                    lambda_s: 1.05,
+                    lambda_m: (1.0 + p.k) * lf_guess - p.k * 1.05 - dm,
+                };
+                check_tangent(&p, &f, &dir, 0.8, &hist, FibreRate::Step { h: 1e-2 });
+            }
+        }
+        // The default (nearly incompressible) D, with a relative tolerance.
+        let p = Params::default();
+        check_tangent(
+            &p,
+            &sample_f(5),
+            &dir,
+            0.5,
+            &FibreHistory::REST,
+            FibreRate::Isometric,
+        );
+    }
+
+    #[test]
+    fn activation_derivative_matches_finite_differences() {
+        let p = Params::default();
+        let dir = Vector3::new(1.0, 0.0, 0.0);
+        let f = sample_f(11);
+        let hist = FibreHistory {
+            lambda_s: 1.02,
+            lambda_m: 1.0,
+        };
+        let rate = FibreRate::Step { h: 1e-3 };
+        let pt = LawPoint::new(&p, &f, &dir, 0.5, &hist, rate);
+        let e = 1e-7;
+        let fd = (LawPoint::new(&p, &f, &dir, 0.5 + e, &hist, rate).kirchhoff()
+            - LawPoint::new(&p, &f, &dir, 0.5 - e, &hist, rate).kirchhoff())
+            / (2.0 * e);
+        let an = pt.kirchhoff_activation_derivative();
+        assert!(
+            (fd - an).norm() < 1e-5 * an.norm().max(1.0),
+            "fd\n{fd}\nan\n{an}"
+        );
+    }
+
+    #[test]
+    fn objectivity_under_rotation() {
+        // τ(QF) = Q τ(F) Qᵀ.
+        let p = Params::default();
+        let dir = Vector3::new(1.0, 0.0, 0.0);
+        let f = sample_f(8);
+        let q = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
+        let t1 = LawPoint::new(
+            &p,
+            &(q * f),
+            &dir,
+            0.6,
+            &FibreHistory::REST,
+            FibreRate::Isometric,
+        )
+        .kirchhoff();
+        let t0 =
+            LawPoint::new(&p, &f, &dir, 0.6, &FibreHistory::REST, FibreRate::Isometric).kirchhoff();
+        assert!((t1 - q * t0 * q.transpose()).norm() < 1e-9 * t0.norm());
+    }
+
+    #[test]
+    fn stress_free_at_rest() {
+        let p = Params::default();
+        let pt = LawPoint::new(
+            &p,
+            &Matrix3::identity(),
+            &Vector3::x(),
+            0.0,
+            &FibreHistory::REST,
+            FibreRate::Isometric,
+        );
+        assert!(pt.cauchy().norm() < 1e-9);
+    }
+}

@@ -1,0 +1,29 @@
+//! Volumetric penalty U_J(J) (MODEL_NOTES "Energy and stress").
+
+/// U_J = (J − 1)² / D.
+pub fn volumetric_energy(j: f64, d_comp: f64) -> f64 {
+    (j - 1.0) * (j - 1.0) / d_comp
+}
+
+/// (U_J', U_J'') = (2 (J − 1) / D, 2 / D); U_J' is the hydrostatic pressure p.
+#[inline]
+pub fn volumetric_derivatives(j: f64, d_comp: f64) -> (f64, f64) {
+    (2.0 * (j - 1.0) / d_comp, 2.0 / d_comp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn derivatives_match_finite_differences() {
+        let d = 1e-6;
+        for j in [0.9, 1.0, 1.05] {
+            let h = 1e-6;
+            let fd = (volumetric_energy(j + h, d) - volumetric_energy(j - h, d)) / (2.0 * h);
+            let (p, dp) = volumetric_derivatives(j, d);
+            assert!((fd - p).abs() < 1e-6 * (1.0 + p.abs()) + 1e-2);
+            assert_eq!(dp, 2.0 / d);
+        }
+    }
+}

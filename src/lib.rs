@@ -1,0 +1,10 @@
+//! Skeletal muscle after Lu, Beldie, Walker, Richmond & Middleton (2011) as
+//! FMI 2.0 Co-Simulation FMUs.
+//!
+//! - [`law`]: the muscle law (no FMI in it): parameters, fibre curves, the
+//!   CE–SEE step solve, the 3D stress and tangent, the 1D uniaxial reduction.
+//! - [`fmi2`]: a generic FMI 2.0 Co-Simulation layer over a [`fmi2::Model`]
+//!   (knows nothing about muscles).
+//! - [`fmus`]: the FMUs: models with their variable tables.
+
+pub mod law;
