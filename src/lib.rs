@@ -6,5 +6,13 @@
 //! - [`fmi2`]: a generic FMI 2.0 Co-Simulation layer over a [`fmi2::Model`]
 //!   (knows nothing about muscles).
 //! - [`fmus`]: the FMUs: models with their variable tables.
+//!
+//! The cdylib exports the C API of exactly one FMU, chosen by a Cargo feature
+//! (`export-hill1d`); `fmu_build` builds it once per FMU.
 
+pub mod fmi2;
+pub mod fmus;
 pub mod law;
+
+#[cfg(feature = "export-hill1d")]
+crate::export_fmi2!(crate::fmus::hill1d::Hill1D);

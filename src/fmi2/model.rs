@@ -116,7 +116,10 @@ pub enum SetOutcome {
     /// the layer returns `fmi2Warning` and logs the message. `log_once` asks the
     /// layer to log this kind of warning only once per instance (status is
     /// still `fmi2Warning` every time).
-    Warning { message: String, log_once: bool },
+    Warning {
+        message: String,
+        log_once: bool,
+    },
 }
 
 /// Outcome of a failed step.

@@ -68,6 +68,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::approx_constant)] // 3.14 is the paper's lower bound of k_e, not π
     fn derivative_matches_finite_differences() {
         for &(kc, ke, d) in &[
             (5.0, 5.0, 1.5),

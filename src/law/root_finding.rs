@@ -26,8 +26,9 @@ pub struct Root {
 /// they stay strictly inside the current bracket and the derivative is
 /// positive; otherwise the bracket is bisected. Every evaluation shrinks the
 /// bracket, so the iteration converges for any input (at worst like
-/// bisection). Converged when the Newton step is below `xtol` (the step is
-/// applied) or f(x) = 0, or the bracket is narrower than `xtol`.
+/// bisection). Converged when the Newton correction is below `xtol` (the
+/// correction is applied, leaving an error of O(xtol²)), or f(x) = 0, or the
+/// bracket is narrower than `xtol`.
 /// Used by the CE–SEE solve (MODEL_NOTES "Hill fibre": "a safeguarded
 /// Newton (bracket + bisection fallback), never a bare Newton").
 pub fn safeguarded_newton<F>(
@@ -74,15 +75,19 @@ where
             hi = x;
             checked_hi = true;
         }
-        let newton = x - r / dr;
-        let step_ok = dr > 0.0 && dr.is_finite() && newton > lo && newton < hi;
-        if step_ok && (newton - x).abs() <= xtol {
+        let step = r / dr;
+        let newton = x - step;
+        // Converged: a Newton correction below `xtol` is applied and accepted
+        // (its own error is O(step²)). Checked before the bracket test, since a
+        // correction below the rounding of x lands on the bracket end.
+        if dr > 0.0 && step.abs() <= xtol {
             return Ok(Root {
-                x: newton,
+                x: newton.clamp(lo, hi),
                 slope: dr,
                 iterations,
             });
         }
+        let step_ok = dr > 0.0 && dr.is_finite() && newton > lo && newton < hi;
         if hi - lo <= xtol {
             // The bracket is resolved; confirm it really brackets a root.
             if !checked_lo || !checked_hi {
@@ -125,6 +130,16 @@ mod tests {
         let r = safeguarded_newton(f, -10.0, 10.0, -9.0, 1e-15).unwrap();
         assert!((r.x - (1.0 + 1e-15)).abs() < 1e-13, "{}", r.x);
         assert!(r.iterations < 200);
+    }
+
+    #[test]
+    fn a_correction_below_rounding_converges_at_once() {
+        // x0 is the root to the last bit: the correction rounds away, and the
+        // iteration must stop there, not bisect a bracket that cannot shrink.
+        let root = 1.605_818_543_921_715_2_f64;
+        let f = |x: f64| (3.4e8 * (x - root) - 5e-9, 3.4e8);
+        let r = safeguarded_newton(f, 1.0, 1.7, root, 1e-15).unwrap();
+        assert!(r.iterations <= 2, "{} iterations", r.iterations);
     }
 
     #[test]

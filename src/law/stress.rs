@@ -228,8 +228,11 @@ mod tests {
     #[test]
     fn stress_is_the_derivative_of_the_energy() {
         // P = ∂U/∂F (first Piola–Kirchhoff) = τ F⁻ᵀ; central differences.
-        let mut p = Params::default();
-        p.d_comp = 1e-4; // keep the volumetric term commensurate with the rest for FD accuracy
+        // D = 1e-4 keeps the volumetric term commensurate with the rest for FD accuracy.
+        let p = Params {
+            d_comp: 1e-4,
+            ..Params::default()
+        };
         let dir = Vector3::new(1.0, 0.0, 0.0);
         for seed in 1..40u64 {
             let f = sample_f(seed * 7919);
@@ -283,10 +286,8 @@ mod tests {
     ) {
         let pt = LawPoint::new(p, f, dir, act, hist, rate);
         let tau_at = |ff: &Matrix3<f64>| LawPoint::new(p, ff, dir, act, hist, rate).kirchhoff();
-        let mut seed = 99u64;
-        for _ in 0..6 {
+        for seed in 99u64..105 {
             let g = sample_f(seed) - Matrix3::identity();
-            seed += 1;
             let e = 1e-7;
             let fd = (tau_at(&((Matrix3::identity() + g * e) * f))
                 - tau_at(&((Matrix3::identity() - g * e) * f)))
@@ -325,8 +326,11 @@ mod tests {
 
     #[test]
     fn tangent_matches_finite_differences() {
-        let mut p = Params::default();
-        p.d_comp = 1e-5; // FD of a 2 GPa bulk term against kPa shear loses digits; the law is the same
+        // FD of a 2 GPa bulk term against kPa shear loses digits; the law is the same.
+        let p = Params {
+            d_comp: 1e-5,
+            ..Params::default()
+        };
         let dir = Vector3::new(1.0, 0.0, 0.0);
         for seed in [3u64, 17, 29, 101] {
             let f = sample_f(seed);

@@ -173,7 +173,8 @@ fn bisect_lateral(
     let mu0 = lambda.sqrt().recip();
     let (mut lo, mut hi) = (mu0, mu0);
     let mut n = 0;
-    while !(tau22(lo) < 0.0) {
+    // `<` and `>` are false for NaN, so a NaN residual keeps expanding (bounded).
+    while tau22(lo).partial_cmp(&0.0) != Some(std::cmp::Ordering::Less) {
         lo *= 0.5;
         n += 1;
         if n > 60 {
@@ -182,7 +183,7 @@ fn bisect_lateral(
             )));
         }
     }
-    while !(tau22(hi) > 0.0) {
+    while tau22(hi).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         hi *= 2.0;
         n += 1;
         if n > 120 {
@@ -258,8 +259,10 @@ mod tests {
         // σ11 = (1/J)[2 U_I' (λ̄f² − Ī1/3) + (2/3) λ̄f W] + U_J',
         // σ22 = (1/J)[2 U_I' (μ̄² − Ī1/3) − (1/3) λ̄f W] + U_J' = 0.
         for d_comp in [1e-9, 1e-6, 1e-4] {
-            let mut p = Params::default();
-            p.d_comp = d_comp;
+            let p = Params {
+                d_comp,
+                ..Params::default()
+            };
             for &(lambda, a) in &[(1.0, 0.0), (1.2, 0.0), (0.8, 0.0), (1.1, 1.0), (0.9, 0.5)] {
                 let u = solve(&p, lambda, a, &FibreHistory::REST, FibreRate::Isometric);
                 let j = lambda * u.mu * u.mu;
@@ -292,8 +295,10 @@ mod tests {
     #[test]
     fn incompressible_limit() {
         // D → 0: μ = λ^(−1/2), P = 2 U_I' (λ − λ⁻²) + W.
-        let mut p = Params::default();
-        p.d_comp = 1e-13;
+        let p = Params {
+            d_comp: 1e-13,
+            ..Params::default()
+        };
         for &(lambda, a) in &[(1.2, 0.0), (0.85, 0.0), (1.05, 1.0), (1.3, 0.3)] {
             let u = solve(&p, lambda, a, &FibreHistory::REST, FibreRate::Isometric);
             assert!(
@@ -325,8 +330,10 @@ mod tests {
         // At λ = 1.5 the matrix stress is ~1e10 Pa, so J − 1 = D p / 2 is
         // visible even at D = 1e-12; it must shrink in proportion to D.
         let dev = |d_comp: f64| {
-            let mut p = Params::default();
-            p.d_comp = d_comp;
+            let p = Params {
+                d_comp,
+                ..Params::default()
+            };
             let u = solve(&p, 1.5, 0.3, &FibreHistory::REST, FibreRate::Isometric);
             (u.point.j - 1.0).abs()
         };
@@ -343,9 +350,11 @@ mod tests {
     #[test]
     fn stress_falls_as_compressibility_grows_and_rises_with_sigma0() {
         let at = |d_comp: f64, sigma0: f64| {
-            let mut p = Params::default();
-            p.d_comp = d_comp;
-            p.sigma0 = sigma0;
+            let p = Params {
+                d_comp,
+                sigma0,
+                ..Params::default()
+            };
             solve(&p, 1.2, 0.0, &FibreHistory::REST, FibreRate::Isometric).nominal_stress()
         };
         let (s9, s6, s4) = (at(1e-9, 7e5), at(1e-6, 7e5), at(1e-4, 7e5));
@@ -437,9 +446,11 @@ mod tests {
     fn stiff_and_extreme_cases_converge() {
         for d_comp in [1e-12, 1e-9, 1e-6, 1e-4] {
             for alpha in [10.0, 100.0, 1000.0] {
-                let mut p = Params::default();
-                p.d_comp = d_comp;
-                p.alpha = alpha;
+                let p = Params {
+                    d_comp,
+                    alpha,
+                    ..Params::default()
+                };
                 for lambda in [0.3, 0.5, 0.8, 1.0, 1.3, 1.6, 2.0] {
                     for a in [0.0, 1.0] {
                         for rate in [

@@ -1,0 +1,743 @@
+//! `HillMuscle1D`: the 1D Hill reduction of the law as an FMI 2.0
+//! Co-Simulation model (MODEL_NOTES "The 1D Hill reduction" and
+//! "Co-simulation conventions").
+//!
+//! A prismatic muscle of rest length `L0` and cross-section `area` in
+//! homogeneous uniaxial stress. Each step:
+//! 1. the activation level follows da/dt = S (u − a) exactly for the command
+//!    held over the step (or linear over the step when an input derivative is
+//!    set); with `activation_dynamics = false` the level is the command;
+//! 2. the length moves from where it is to the input `length` — or to
+//!    `length + h · dlength/dt` when the importer set an input derivative —
+//!    and the step ends there (CE rate from the stretch change over h);
+//! 3. the uniaxial state is solved at the end of the step (lateral stretch
+//!    from σ22 = 0, CE–SEE solve inside) and committed only on success.
+//!
+//! At initialization the muscle is in isometric equilibrium at its initial
+//! length and `initial_activation`.
+
+use crate::fmi2::bytes::{ByteReader, ByteWriter};
+use crate::fmi2::{
+    Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError, Unit,
+    VarType, Variability,
+};
+use crate::law::activation::activation_step;
+use crate::law::series_element::see_stress;
+use crate::law::{solve_uniaxial, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS};
+
+/// Rest length of the paper's specimen [m].
+pub const DEFAULT_L0: f64 = 0.05;
+
+/// Default cross-section [m²]: π (0.0175 m)² / 4, the area of the paper's
+/// fusiform muscle at its largest (middle) section. This is a placeholder
+/// until the FE FMU defines the specimen's volume V0, when the default becomes
+/// the mean area V0 / L0 so that both variants give the same stress scale.
+pub const DEFAULT_AREA: f64 = std::f64::consts::PI * 0.0175 * 0.0175 / 4.0;
+
+/// A variable of `HillMuscle1D`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Var {
+    Param(ParamId),
+    L0,
+    Area,
+    ActivationDynamics,
+    InitialActivation,
+    Activation,
+    Length,
+    Out(Output),
+}
+
+/// The outputs, in table order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Output {
+    Force,
+    Stress,
+    CauchyStress,
+    ActivationLevel,
+    FibreStretch,
+    CeStretch,
+    SeeStretch,
+    ActiveStress,
+    PassiveStress,
+}
+
+const OUTPUTS: [(Output, &str, &str, Option<&str>); 9] = [
+    (
+        Output::Force,
+        "force",
+        "Axial muscle force, tension positive",
+        Some("N"),
+    ),
+    (
+        Output::Stress,
+        "stress",
+        "Engineering (nominal) stress: force / area",
+        Some("Pa"),
+    ),
+    (
+        Output::CauchyStress,
+        "cauchy_stress",
+        "Axial Cauchy (true) stress",
+        Some("Pa"),
+    ),
+    (
+        Output::ActivationLevel,
+        "activation_level",
+        "Activation level a",
+        Some("1"),
+    ),
+    (
+        Output::FibreStretch,
+        "fibre_stretch",
+        "Modified fibre stretch J^(-1/3) lambda",
+        Some("1"),
+    ),
+    (
+        Output::CeStretch,
+        "ce_stretch",
+        "Contractile element stretch lambda_m",
+        Some("1"),
+    ),
+    (
+        Output::SeeStretch,
+        "see_stretch",
+        "Series elastic element stretch lambda_s",
+        Some("1"),
+    ),
+    (
+        Output::ActiveStress,
+        "active_stress",
+        "SEE (= CE) nominal stress sigma_s",
+        Some("Pa"),
+    ),
+    (
+        Output::PassiveStress,
+        "passive_stress",
+        "Rest of the nominal stress: stress - active_stress",
+        Some("Pa"),
+    ),
+];
+const N_OUT: usize = OUTPUTS.len();
+
+/// The two inputs, as indices into the sensitivity table.
+const IN_ACTIVATION: usize = 0;
+const IN_LENGTH: usize = 1;
+
+/// The 1D Hill muscle FMU model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Hill1D {
+    params: Params,
+    l0: f64,
+    area: f64,
+    activation_dynamics: bool,
+    initial_activation: f64,
+    // Inputs and their derivatives for the next step.
+    command: f64,
+    length: f64,
+    command_rate: f64,
+    length_rate: f64,
+    // Committed state.
+    activation_level: f64,
+    history: FibreHistory,
+    lambda: f64,
+    mu: f64,
+    // Outputs of the last solve and their partials d out / d input.
+    outputs: [f64; N_OUT],
+    partials: [[f64; N_OUT]; 2],
+}
+
+impl Hill1D {
+    /// Outputs and their partials with respect to (activation command, length
+    /// input) from a solved uniaxial state; `da_du` is ∂a/∂u of the step map.
+    fn evaluate(&self, u: &Uniaxial, a: f64, da_du: f64) -> ([f64; N_OUT], [[f64; N_OUT]; 2]) {
+        let p = &self.params;
+        let fibre = &u.point.fibre;
+        let (sigma_s, dsigma_s) = see_stress(fibre.history.lambda_s, p.alpha, p.beta);
+        let nominal = u.nominal_stress();
+        let values = [
+            nominal * self.area,
+            nominal,
+            u.cauchy_stress(),
+            a,
+            u.point.lambda_f,
+            fibre.history.lambda_m,
+            fibre.history.lambda_s,
+            sigma_s,
+            nominal - sigma_s,
+        ];
+        // Chain rule: λ = L / L0, so d/dL = (1/L0) d/dλ; d/du = (∂a/∂u) d/da.
+        let column = |s: &crate::law::uniaxial::Sensitivity,
+                      dnom: f64,
+                      dlambda: f64,
+                      dact: f64,
+                      scale: f64| {
+            let dsee = dsigma_s * s.lambda_s;
+            [
+                dnom * self.area * scale,
+                dnom * scale,
+                u.dcauchy(s, dlambda) * scale,
+                dact * scale,
+                s.lambda_f * scale,
+                ((1.0 + p.k) * s.lambda_f - p.k * s.lambda_s) * scale,
+                s.lambda_s * scale,
+                dsee * scale,
+                (dnom - dsee) * scale,
+            ]
+        };
+        let d_length = column(&u.d_dlambda, u.dnominal_dlambda(), 1.0, 0.0, 1.0 / self.l0);
+        let d_act = column(&u.d_dactivation, u.dnominal_dactivation(), 0.0, 1.0, da_du);
+        let mut partials = [[0.0; N_OUT]; 2];
+        partials[IN_LENGTH] = d_length;
+        partials[IN_ACTIVATION] = d_act;
+        (values, partials)
+    }
+
+    fn check_setup(&self) -> Result<(), ModelError> {
+        self.params
+            .validate()
+            .map_err(|e| ModelError(e.to_string()))?;
+        check_positive("L0", self.l0)?;
+        check_positive("area", self.area)?;
+        check_unit_interval("initial_activation", self.initial_activation)?;
+        check_positive("length", self.length)?;
+        Ok(())
+    }
+}
+
+fn check_positive(name: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ModelError(format!(
+            "{name} = {v} is out of range: must be finite and > 0"
+        )))
+    }
+}
+
+fn check_unit_interval(name: &str, v: f64) -> Result<(), ModelError> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(ModelError(format!(
+            "{name} = {v} is out of range: must be in [0, 1]"
+        )))
+    }
+}
+
+fn real(unit: &'static str, start: Option<f64>, min: Option<f64>, max: Option<f64>) -> VarType {
+    VarType::Real {
+        unit: Some(unit),
+        start,
+        min,
+        max,
+    }
+}
+
+fn parameter(
+    name: &'static str,
+    description: &'static str,
+    ty: VarType,
+    id: Var,
+) -> ScalarVariable<Var> {
+    ScalarVariable {
+        name,
+        description,
+        causality: Causality::Parameter,
+        variability: Variability::Fixed,
+        initial: None,
+        ty,
+        depends_on: vec![],
+        id,
+    }
+}
+
+impl Model for Hill1D {
+    type Var = Var;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            model_identifier: "HillMuscle1D",
+            description:
+                "Hill-type hyperelastic skeletal muscle (Lu et al. 2011), 1D uniaxial reduction",
+            version: env!("CARGO_PKG_VERSION"),
+            units: vec![
+                Unit {
+                    name: "1",
+                    ..Unit::default()
+                },
+                Unit {
+                    name: "m",
+                    m: 1,
+                    ..Unit::default()
+                },
+                Unit {
+                    name: "m2",
+                    m: 2,
+                    ..Unit::default()
+                },
+                Unit {
+                    name: "s",
+                    s: 1,
+                    ..Unit::default()
+                },
+                Unit {
+                    name: "1/s",
+                    s: -1,
+                    ..Unit::default()
+                },
+                Unit {
+                    name: "N",
+                    kg: 1,
+                    m: 1,
+                    s: -2,
+                },
+                Unit {
+                    name: "Pa",
+                    kg: 1,
+                    m: -1,
+                    s: -2,
+                },
+                Unit {
+                    name: "1/Pa",
+                    kg: -1,
+                    m: 1,
+                    s: 2,
+                },
+            ],
+            default_experiment: (0.0, 2.5, 1e-3),
+            max_input_derivative_order: 1,
+        }
+    }
+
+    /// Parameters (law, then geometry and activation options), inputs, outputs.
+    fn variables() -> Vec<ScalarVariable<Var>> {
+        let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
+            .iter()
+            .map(|info| {
+                parameter(
+                    info.name,
+                    info.description,
+                    real(info.unit, Some(info.default), None, None),
+                    Var::Param(info.id),
+                )
+            })
+            .collect();
+        v.push(parameter(
+            "L0",
+            "Rest length of the muscle",
+            real("m", Some(DEFAULT_L0), None, None),
+            Var::L0,
+        ));
+        v.push(parameter(
+            "area",
+            "Reference cross-section area (default: pi (0.0175 m)^2 / 4, the fusiform specimen's middle section)",
+            real("m2", Some(DEFAULT_AREA), None, None),
+            Var::Area,
+        ));
+        v.push(parameter(
+            "activation_dynamics",
+            "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
+            VarType::Boolean { start: Some(true) },
+            Var::ActivationDynamics,
+        ));
+        v.push(parameter(
+            "initial_activation",
+            "Activation level at the start time",
+            real("1", Some(0.0), Some(0.0), Some(1.0)),
+            Var::InitialActivation,
+        ));
+        let input = |name, description, ty, id| ScalarVariable {
+            name,
+            description,
+            causality: Causality::Input,
+            variability: Variability::Continuous,
+            initial: None,
+            ty,
+            depends_on: vec![],
+            id,
+        };
+        v.push(input(
+            "activation",
+            "Activation command u in [0, 1] (values outside are clamped with a warning)",
+            real("1", Some(0.0), Some(0.0), Some(1.0)),
+            Var::Activation,
+        ));
+        v.push(input(
+            "length",
+            "Muscle length reached at the end of the step",
+            real("m", Some(DEFAULT_L0), None, None),
+            Var::Length,
+        ));
+        // Every output depends on both inputs and on every parameter.
+        let mut deps: Vec<&'static str> = vec!["activation", "length"];
+        deps.extend(PARAMETERS.iter().map(|i| i.name));
+        deps.extend(["L0", "area", "activation_dynamics", "initial_activation"]);
+        for (out, name, description, unit) in OUTPUTS {
+            v.push(ScalarVariable {
+                name,
+                description,
+                causality: Causality::Output,
+                variability: Variability::Continuous,
+                initial: Some(Initial::Calculated),
+                ty: VarType::Real {
+                    unit,
+                    start: None,
+                    min: None,
+                    max: None,
+                },
+                depends_on: deps.clone(),
+                id: Var::Out(out),
+            });
+        }
+        v
+    }
+
+    fn new() -> Self {
+        let mut m = Hill1D {
+            params: Params::default(),
+            l0: DEFAULT_L0,
+            area: DEFAULT_AREA,
+            activation_dynamics: true,
+            initial_activation: 0.0,
+            command: 0.0,
+            length: DEFAULT_L0,
+            command_rate: 0.0,
+            length_rate: 0.0,
+            activation_level: 0.0,
+            history: FibreHistory::REST,
+            lambda: 1.0,
+            mu: 1.0,
+            outputs: [0.0; N_OUT],
+            partials: [[0.0; N_OUT]; 2],
+        };
+        // Outputs at the start values are those of the initial equilibrium.
+        m.initialize().expect("the default start values are valid");
+        m
+    }
+
+    fn get_real(&self, var: Var) -> f64 {
+        match var {
+            Var::Param(id) => self.params.get(id),
+            Var::L0 => self.l0,
+            Var::Area => self.area,
+            Var::InitialActivation => self.initial_activation,
+            Var::Activation => self.command,
+            Var::Length => self.length,
+            Var::Out(o) => self.outputs[o as usize],
+            Var::ActivationDynamics => f64::NAN,
+        }
+    }
+
+    fn get_integer(&self, _var: Var) -> i32 {
+        0
+    }
+
+    fn get_boolean(&self, var: Var) -> bool {
+        matches!(var, Var::ActivationDynamics) && self.activation_dynamics
+    }
+
+    fn set_real(&mut self, var: Var, value: f64) -> Result<SetOutcome, ModelError> {
+        match var {
+            Var::Param(id) => self
+                .params
+                .set(id, value)
+                .map_err(|e| ModelError(e.to_string()))?,
+            Var::L0 => {
+                check_positive("L0", value)?;
+                self.l0 = value;
+            }
+            Var::Area => {
+                check_positive("area", value)?;
+                self.area = value;
+            }
+            Var::InitialActivation => {
+                check_unit_interval("initial_activation", value)?;
+                self.initial_activation = value;
+            }
+            Var::Length => {
+                check_positive("length", value)?;
+                self.length = value;
+            }
+            Var::Activation => {
+                if value.is_nan() {
+                    return Err(ModelError(format!(
+                        "activation = {value} is out of range: must be in [0, 1]"
+                    )));
+                }
+                let clamped = value.clamp(0.0, 1.0);
+                self.command = clamped;
+                if clamped != value {
+                    return Ok(SetOutcome::Warning {
+                        message: format!("activation = {value} is outside [0, 1]; clamped to {clamped} (logged once per instance)"),
+                        log_once: true,
+                    });
+                }
+            }
+            Var::ActivationDynamics | Var::Out(_) => {
+                return Err(ModelError("not a Real input or parameter".into()));
+            }
+        }
+        Ok(SetOutcome::Ok)
+    }
+
+    fn set_integer(&mut self, _var: Var, _value: i32) -> Result<SetOutcome, ModelError> {
+        Err(ModelError("HillMuscle1D has no Integer variables".into()))
+    }
+
+    fn set_boolean(&mut self, var: Var, value: bool) -> Result<SetOutcome, ModelError> {
+        match var {
+            Var::ActivationDynamics => {
+                self.activation_dynamics = value;
+                Ok(SetOutcome::Ok)
+            }
+            _ => Err(ModelError("not a Boolean parameter".into())),
+        }
+    }
+
+    fn set_real_input_derivative(
+        &mut self,
+        var: Var,
+        _order: i32,
+        value: f64,
+    ) -> Result<(), ModelError> {
+        if !value.is_finite() {
+            return Err(ModelError(format!(
+                "input derivative {value} must be finite"
+            )));
+        }
+        match var {
+            Var::Activation => self.command_rate = value,
+            Var::Length => self.length_rate = value,
+            _ => return Err(ModelError("not a Real input".into())),
+        }
+        Ok(())
+    }
+
+    /// Isometric equilibrium at the initial length and `initial_activation`
+    /// (with `activation_dynamics = false`: at the command).
+    fn initialize(&mut self) -> Result<(), ModelError> {
+        self.check_setup()?;
+        let (a, da_du) = if self.activation_dynamics {
+            (self.initial_activation, 0.0)
+        } else {
+            (self.command, 1.0)
+        };
+        let lambda = self.length / self.l0;
+        let u = solve_uniaxial(
+            &self.params,
+            lambda,
+            a,
+            &FibreHistory::REST,
+            FibreRate::Isometric,
+            lambda.sqrt().recip(),
+        )
+        .map_err(|e| ModelError(e.0))?;
+        let (outputs, partials) = self.evaluate(&u, a, da_du);
+        self.activation_level = a;
+        self.history = u.point.fibre.history;
+        self.lambda = lambda;
+        self.mu = u.mu;
+        self.outputs = outputs;
+        self.partials = partials;
+        Ok(())
+    }
+
+    fn do_step(&mut self, _t: f64, h: f64) -> Result<(), StepError> {
+        let end_length = self.length + h * self.length_rate;
+        if !(end_length.is_finite() && end_length > 0.0) {
+            return Err(StepError::Discard(format!(
+                "length at the end of the step, length + h * der(length) = {end_length}, must be finite and > 0"
+            )));
+        }
+        let (a, da_du) = if self.activation_dynamics {
+            activation_step(
+                self.activation_level,
+                self.command,
+                self.command_rate,
+                self.params.s,
+                h,
+            )
+        } else {
+            let a = self.command + h * self.command_rate;
+            if (0.0..=1.0).contains(&a) {
+                (a, 1.0)
+            } else {
+                (a.clamp(0.0, 1.0), 0.0)
+            }
+        };
+        let lambda = end_length / self.l0;
+        let mu_guess = self.mu * (self.lambda / lambda).sqrt();
+        let u = solve_uniaxial(
+            &self.params,
+            lambda,
+            a,
+            &self.history,
+            FibreRate::Step { h },
+            mu_guess,
+        )
+        .map_err(|e| StepError::Discard(e.0))?;
+        let (outputs, partials) = self.evaluate(&u, a, da_du);
+        if outputs.iter().any(|x| !x.is_finite()) {
+            return Err(StepError::Discard(format!(
+                "non-finite output at stretch {lambda}"
+            )));
+        }
+        self.activation_level = a;
+        self.history = u.point.fibre.history;
+        self.lambda = lambda;
+        self.mu = u.mu;
+        self.outputs = outputs;
+        self.partials = partials;
+        // Input derivatives hold for one step (they describe the input at the
+        // communication point they were set at).
+        self.command_rate = 0.0;
+        self.length_rate = 0.0;
+        Ok(())
+    }
+
+    fn partial_derivative(&self, unknown: Var, known: Var) -> Result<f64, ModelError> {
+        let column = match known {
+            Var::Activation => IN_ACTIVATION,
+            Var::Length => IN_LENGTH,
+            _ => {
+                return Err(ModelError(
+                    "directional derivatives are taken with respect to the inputs".into(),
+                ))
+            }
+        };
+        match unknown {
+            Var::Out(o) => Ok(self.partials[column][o as usize]),
+            _ => Err(ModelError(
+                "directional derivatives are provided for the outputs".into(),
+            )),
+        }
+    }
+
+    fn serialize(&self, out: &mut Vec<u8>) {
+        let params: Vec<f64> = PARAMETERS
+            .iter()
+            .map(|info| self.params.get(info.id))
+            .collect();
+        let mut w = ByteWriter::new(out);
+        w.f64s(&params)
+            .f64(self.l0)
+            .f64(self.area)
+            .bool(self.activation_dynamics)
+            .f64(self.initial_activation)
+            .f64(self.command)
+            .f64(self.length)
+            .f64(self.command_rate)
+            .f64(self.length_rate)
+            .f64(self.activation_level)
+            .f64(self.history.lambda_s)
+            .f64(self.history.lambda_m)
+            .f64(self.lambda)
+            .f64(self.mu)
+            .f64s(&self.outputs);
+        for column in &self.partials {
+            w.f64s(column);
+        }
+    }
+
+    fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
+        let bad = |e: String| ModelError(format!("HillMuscle1D state: {e}"));
+        let mut r = ByteReader::new(input);
+        let mut m = Hill1D::new();
+        let params = r.f64s()?;
+        if params.len() != PARAMETERS.len() {
+            return Err(bad(format!(
+                "{} parameters, expected {}",
+                params.len(),
+                PARAMETERS.len()
+            )));
+        }
+        for (info, &v) in PARAMETERS.iter().zip(&params) {
+            m.params.set(info.id, v).map_err(|e| bad(e.to_string()))?;
+        }
+        m.l0 = r.f64()?;
+        m.area = r.f64()?;
+        m.activation_dynamics = r.bool()?;
+        m.initial_activation = r.f64()?;
+        m.command = r.f64()?;
+        m.length = r.f64()?;
+        m.command_rate = r.f64()?;
+        m.length_rate = r.f64()?;
+        m.activation_level = r.f64()?;
+        m.history = FibreHistory {
+            lambda_s: r.f64()?,
+            lambda_m: r.f64()?,
+        };
+        m.lambda = r.f64()?;
+        m.mu = r.f64()?;
+        let fill = |r: &mut ByteReader, dst: &mut [f64; N_OUT]| -> Result<(), ModelError> {
+            let v = r.f64s()?;
+            if v.len() != N_OUT {
+                return Err(bad(format!("{} outputs, expected {N_OUT}", v.len())));
+            }
+            dst.copy_from_slice(&v);
+            Ok(())
+        };
+        fill(&mut r, &mut m.outputs)?;
+        for column in 0..2 {
+            fill(&mut r, &mut m.partials[column])?;
+        }
+        let state = [
+            m.command,
+            m.command_rate,
+            m.length_rate,
+            m.activation_level,
+            m.history.lambda_s,
+            m.history.lambda_m,
+            m.lambda,
+            m.mu,
+        ];
+        if state
+            .iter()
+            .chain(&m.outputs)
+            .chain(m.partials.iter().flatten())
+            .any(|x| !x.is_finite())
+        {
+            return Err(bad("a non-finite value".into()));
+        }
+        m.check_setup().map_err(|e| bad(e.0))?;
+        Ok(m)
+    }
+}
+
+/// The law and the conventions, for the FMU's `documentation/index.html`.
+pub const LAW_HTML: &str = r#"<h2>The law</h2>
+<p>Hill-type hyperelastic skeletal muscle after Lu, Beldie, Walker, Richmond &amp; Middleton (2011).
+Strain energy U = U<sub>I</sub>(&#298;<sub>1</sub>) + U<sub>f</sub>(&lambda;&#772;<sub>f</sub>, &lambda;<sub>s</sub>) + U<sub>J</sub>(J):</p>
+<ul>
+<li>isotropic matrix U<sub>I</sub> = c (exp(b (&#298;<sub>1</sub> &minus; 3)) &minus; 1);</li>
+<li>volumetric penalty U<sub>J</sub> = (J &minus; 1)&sup2; / D (bulk modulus 2/D);</li>
+<li>Hill fibre along the muscle axis, nominal stress W = &sigma;<sub>s</sub> + &sigma;<sub>p</sub>:
+ a contractile element (activation a, force-length f<sub>&lambda;</sub>, force-velocity f<sub>v</sub>) in series with
+ the elastic element &sigma;<sub>s</sub> = &beta; (exp(&alpha; (&lambda;<sub>s</sub> &minus; 1)) &minus; 1), in parallel with
+ &sigma;<sub>p</sub> = &sigma;<sub>0</sub> A (&lambda;&#772;<sub>f</sub> &minus; 1)&sup2; (&lambda;&#772;<sub>f</sub> &gt; 1).
+ Series kinematics (1 + k) &lambda;&#772;<sub>f</sub> = &lambda;<sub>m</sub> + k &lambda;<sub>s</sub>; each step solves
+ &sigma;<sub>s</sub> = &sigma;<sub>0</sub> a f<sub>&lambda;</sub>(&lambda;&#772;<sub>f</sub>) f<sub>v</sub>(&lambda;&#775;<sub>m</sub>) for the SEE stretch
+ (bracketed, safeguarded Newton), f<sub>&lambda;</sub> evaluated at the end of the step.</li>
+<li>activation dynamics da/dt = S (u &minus; a), integrated exactly over each step.</li>
+</ul>
+<h2>The 1D reduction</h2>
+<p>A prism of rest length L0 and area A0 in homogeneous uniaxial stress: F = diag(&lambda;, &mu;, &mu;) with
+&lambda; = L / L0 and the lateral stretch &mu; solved so that the lateral Cauchy stress is zero (finite D).
+force = &sigma;<sub>11</sub> A0 &mu;&sup2;, stress = force / A0, cauchy_stress = &sigma;<sub>11</sub>.</p>
+<h2>Co-simulation conventions</h2>
+<ul>
+<li>Inputs set before fmi2DoStep(t, h) hold over the step. The muscle moves from its length to the input length during the
+step and the step ends there (CE rate from the change over h); outputs after the step are at t + h. With an order-1 input
+derivative (fmi2SetRealInputDerivatives) the step ends at length + h &middot; dlength/dt instead, and the activation command is
+taken linear over the step. Input derivatives hold for one step.</li>
+<li>At initialization the muscle is in isometric equilibrium at its initial length and initial_activation
+(with activation_dynamics = false: at the activation input).</li>
+<li>Force is positive in tension. SI units throughout.</li>
+<li>Bad input: NaN, infinite or non-positive length and NaN activation are rejected with fmi2Error and a log message naming the
+variable and its valid range; the instance keeps its last good state. Activation outside [0, 1] is clamped, with fmi2Warning
+(logged once per instance). Parameters out of range are rejected when set, and the whole set is checked again at
+fmi2ExitInitializationMode.</li>
+<li>fmi2GetDirectionalDerivative gives the partial derivatives of every output with respect to both inputs for the step map
+that produced the current outputs (consistent tangent, history fixed).</li>
+</ul>
+"#;

@@ -1,0 +1,2 @@
+//! The FMUs: models with their variable tables.
+pub mod hill1d;

@@ -1,0 +1,303 @@
+//! `HillMuscle1D` at the model level (the `Model` trait, no C ABI): the
+//! co-simulation conventions of MODEL_NOTES, directional derivatives of the step
+//! map against finite differences, bad input, and state round trips.
+
+use hill_muscle::fmi2::{Model, SetOutcome, StepError};
+use hill_muscle::fmus::hill1d::{Hill1D, Output, Var, DEFAULT_AREA, DEFAULT_L0};
+use hill_muscle::law::force_length::force_length;
+use hill_muscle::law::{ParamId, Params};
+
+const ALL_OUTPUTS: [Output; 9] = [
+    Output::Force,
+    Output::Stress,
+    Output::CauchyStress,
+    Output::ActivationLevel,
+    Output::FibreStretch,
+    Output::CeStretch,
+    Output::SeeStretch,
+    Output::ActiveStress,
+    Output::PassiveStress,
+];
+
+fn out(m: &Hill1D, o: Output) -> f64 {
+    m.get_real(Var::Out(o))
+}
+
+fn initialized() -> Hill1D {
+    let mut m = Hill1D::new();
+    m.initialize().unwrap();
+    m
+}
+
+#[test]
+fn initial_state_is_the_isometric_equilibrium() {
+    // Passive at rest: no stress.
+    let m = initialized();
+    assert!(
+        out(&m, Output::Stress).abs() < 1e-6,
+        "{}",
+        out(&m, Output::Stress)
+    );
+    assert_eq!(out(&m, Output::ActivationLevel), 0.0);
+    // Fully active at rest length from the start: SEE carries σ0 f_λ(λ̄f).
+    let mut m = Hill1D::new();
+    m.set_real(Var::InitialActivation, 1.0).unwrap();
+    m.initialize().unwrap();
+    let p = Params::default();
+    let lf = out(&m, Output::FibreStretch);
+    let expect = p.sigma0 * force_length(lf, p.lambda_opt).0;
+    assert!((out(&m, Output::ActiveStress) - expect).abs() < 1e-9 * expect);
+    let (ls, lm) = (out(&m, Output::SeeStretch), out(&m, Output::CeStretch));
+    let gap = (1.0 + p.k) * lf - (lm + p.k * ls);
+    assert!(
+        gap.abs() < 1e-14,
+        "series kinematics gap {gap}: lf {lf} lm {lm} ls {ls}"
+    );
+    // The initial activation wins over the command when the dynamics are on.
+    let mut m = Hill1D::new();
+    m.set_real(Var::Activation, 1.0).unwrap();
+    m.initialize().unwrap();
+    assert_eq!(out(&m, Output::ActivationLevel), 0.0);
+    // Without dynamics the level is the command.
+    m.set_boolean(Var::ActivationDynamics, false).unwrap();
+    m.initialize().unwrap();
+    assert_eq!(out(&m, Output::ActivationLevel), 1.0);
+}
+
+#[test]
+fn activation_level_rises_as_one_minus_exp() {
+    let mut m = initialized();
+    m.set_real(Var::Activation, 1.0).unwrap();
+    let h = 1e-3;
+    for i in 0..500 {
+        m.do_step(i as f64 * h, h).unwrap();
+        let t = (i + 1) as f64 * h;
+        let expect = 1.0 - (-50.0 * t).exp();
+        assert!(
+            (out(&m, Output::ActivationLevel) - expect).abs() < 1e-12,
+            "t = {t}"
+        );
+    }
+    // After 0.5 s the isometric active stress is at σ0 f_λ scale.
+    assert!(out(&m, Output::Stress) > 0.5 * 7e5);
+}
+
+#[test]
+fn a_long_isometric_hold_reaches_the_isometric_equilibrium() {
+    let mut m = initialized();
+    m.set_real(Var::Activation, 1.0).unwrap();
+    for i in 0..3000 {
+        m.do_step(i as f64 * 1e-3, 1e-3).unwrap();
+    }
+    let mut iso = Hill1D::new();
+    iso.set_real(Var::InitialActivation, 1.0).unwrap();
+    iso.initialize().unwrap();
+    // Stresses relative to the total stress (passive_stress is a difference).
+    let stress_scale = out(&iso, Output::Stress).abs();
+    for o in ALL_OUTPUTS {
+        let (a, b) = (out(&m, o), out(&iso, o));
+        let scale = match o {
+            Output::Stress
+            | Output::CauchyStress
+            | Output::ActiveStress
+            | Output::PassiveStress => stress_scale,
+            Output::Force => out(&iso, Output::Force).abs(),
+            _ => 1.0,
+        };
+        assert!((a - b).abs() <= 1e-9 * scale, "{o:?}: {a} vs {b}");
+    }
+}
+
+#[test]
+fn the_step_ends_at_the_input_length_or_its_extrapolation() {
+    // With dL/dt set, the step ends at L + h dL/dt: bitwise the same as a step
+    // that was given that length directly.
+    let mut a = initialized();
+    let mut b = a.clone();
+    a.set_real(Var::Activation, 0.7).unwrap();
+    b.set_real(Var::Activation, 0.7).unwrap();
+    let (h, l, rate) = (2e-3, 0.051, 0.2);
+    a.set_real(Var::Length, l).unwrap();
+    a.set_real_input_derivative(Var::Length, 1, rate).unwrap();
+    b.set_real(Var::Length, l + h * rate).unwrap();
+    a.do_step(0.0, h).unwrap();
+    b.do_step(0.0, h).unwrap();
+    for o in ALL_OUTPUTS {
+        assert_eq!(out(&a, o), out(&b, o), "{o:?}");
+    }
+    let lambda_f_expected = (l + h * rate) / DEFAULT_L0; // ≈ λ̄f up to J^(−1/3)
+    assert!((out(&a, Output::FibreStretch) / lambda_f_expected - 1.0).abs() < 1e-3);
+    // The derivative holds for one step only.
+    let mut c = a.clone();
+    let mut d = a.clone();
+    d.set_real(Var::Length, a.get_real(Var::Length)).unwrap();
+    c.do_step(h, h).unwrap();
+    d.do_step(h, h).unwrap();
+    assert_eq!(out(&c, Output::Force), out(&d, Output::Force));
+}
+
+/// Step `m` with inputs (u, L) and return the outputs.
+fn step_outputs(m: &Hill1D, u: f64, l: f64, h: f64) -> Vec<f64> {
+    let mut m = m.clone();
+    m.set_real(Var::Activation, u).unwrap();
+    m.set_real(Var::Length, l).unwrap();
+    m.do_step(0.0, h).unwrap();
+    ALL_OUTPUTS.iter().map(|&o| out(&m, o)).collect()
+}
+
+#[test]
+fn directional_derivatives_match_finite_differences_of_the_step_map() {
+    // Prepare a history: activate and stretch for a while.
+    let mut base = initialized();
+    for i in 0..200 {
+        let t = i as f64 * 1e-3;
+        base.set_real(Var::Activation, 0.6).unwrap();
+        base.set_real(Var::Length, DEFAULT_L0 * (1.0 + 0.05 * (10.0 * t).sin()))
+            .unwrap();
+        base.do_step(t, 1e-3).unwrap();
+    }
+    for &(u, l, h) in &[(0.6, 0.0512, 1e-3), (0.3, 0.049, 1e-2), (0.9, 0.0535, 1e-4)] {
+        let mut m = base.clone();
+        m.set_real(Var::Activation, u).unwrap();
+        m.set_real(Var::Length, l).unwrap();
+        m.do_step(0.0, h).unwrap();
+        let (dl, du) = (1e-8, 1e-5);
+        let lp = step_outputs(&base, u, l + dl, h);
+        let lm = step_outputs(&base, u, l - dl, h);
+        let up = step_outputs(&base, u + du, l, h);
+        let um = step_outputs(&base, u - du, l, h);
+        for (k, &o) in ALL_OUTPUTS.iter().enumerate() {
+            for (fd, known) in [
+                ((lp[k] - lm[k]) / (2.0 * dl), Var::Length),
+                ((up[k] - um[k]) / (2.0 * du), Var::Activation),
+            ] {
+                let an = m.partial_derivative(Var::Out(o), known).unwrap();
+                let value_scale = out(&m, o).abs().max(1.0);
+                let tol = 1e-5 * an.abs().max(fd.abs())
+                    + 1e-9 * value_scale / if known == Var::Length { dl } else { du };
+                assert!(
+                    (fd - an).abs() <= tol,
+                    "d {o:?} / d {known:?} at u={u} L={l} h={h}: fd {fd} vs {an}"
+                );
+            }
+        }
+        // d force / d length is the muscle's stiffness: positive here.
+        assert!(
+            m.partial_derivative(Var::Out(Output::Force), Var::Length)
+                .unwrap()
+                > 0.0
+        );
+    }
+}
+
+#[test]
+fn bad_input_is_rejected_and_changes_nothing() {
+    let mut m = initialized();
+    m.set_real(Var::Activation, 0.5).unwrap();
+    m.do_step(0.0, 1e-3).unwrap();
+    let before = m.clone();
+    for v in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.01] {
+        let e = m.set_real(Var::Length, v).unwrap_err();
+        assert!(e.0.contains("length") && e.0.contains("> 0"), "{}", e.0);
+        assert_eq!(m, before);
+    }
+    let e = m.set_real(Var::Activation, f64::NAN).unwrap_err();
+    assert!(
+        e.0.contains("activation") && e.0.contains("[0, 1]"),
+        "{}",
+        e.0
+    );
+    assert_eq!(m, before);
+    // Parameters: each out-of-range value names the parameter and its range.
+    for (id, v, name) in [
+        (ParamId::Dcomp, -1.0, "D"),
+        (ParamId::Kc, 0.0, "kc"),
+        (ParamId::D, 0.5, "d"),
+        (ParamId::LambdaDotMin, 1.0, "lambda_dot_min"),
+    ] {
+        let e = m.set_real(Var::Param(id), v).unwrap_err();
+        assert!(
+            e.0.contains(&format!("parameter {name} ")) && e.0.contains("must be"),
+            "{}",
+            e.0
+        );
+        assert_eq!(m, before);
+    }
+    for (var, v) in [
+        (Var::L0, 0.0),
+        (Var::Area, f64::NAN),
+        (Var::InitialActivation, 1.5),
+    ] {
+        assert!(m.set_real(var, v).is_err());
+        assert_eq!(m, before);
+    }
+    // Activation outside [0, 1] is clamped with a warning.
+    let mut c = m.clone();
+    match c.set_real(Var::Activation, 1.5).unwrap() {
+        SetOutcome::Warning { message, log_once } => {
+            assert!(message.contains("activation") && log_once);
+        }
+        SetOutcome::Ok => panic!("expected a warning"),
+    }
+    assert_eq!(c.get_real(Var::Activation), 1.0);
+    // A step whose extrapolated length is not positive is discarded, state kept.
+    let mut d = m.clone();
+    d.set_real_input_derivative(Var::Length, 1, -1e3).unwrap();
+    let snapshot = d.clone();
+    assert!(matches!(d.do_step(0.001, 1e-3), Err(StepError::Discard(_))));
+    assert_eq!(d, snapshot);
+}
+
+#[test]
+fn serialization_round_trips_exactly_and_rejects_corruption() {
+    let mut m = initialized();
+    m.set_real(Var::Activation, 0.8).unwrap();
+    m.set_real(Var::Param(ParamId::Sigma0), 5e5).unwrap();
+    for i in 0..50 {
+        m.set_real(Var::Length, DEFAULT_L0 * (1.0 + 0.002 * i as f64))
+            .unwrap();
+        m.do_step(i as f64 * 1e-3, 1e-3).unwrap();
+    }
+    let mut bytes = Vec::new();
+    m.serialize(&mut bytes);
+    let mut input = bytes.as_slice();
+    let back = Hill1D::deserialize(&mut input).unwrap();
+    assert!(input.is_empty());
+    assert_eq!(back, m);
+    // Continuing both gives identical results.
+    let (mut a, mut b) = (m.clone(), back);
+    for i in 0..20 {
+        a.do_step(i as f64, 1e-3).unwrap();
+        b.do_step(i as f64, 1e-3).unwrap();
+        assert_eq!(
+            out(&a, Output::Force).to_bits(),
+            out(&b, Output::Force).to_bits()
+        );
+    }
+    for cut in [0, 7, 100, bytes.len() - 1] {
+        let mut input = &bytes[..cut];
+        assert!(
+            Hill1D::deserialize(&mut input).is_err(),
+            "truncated at {cut}"
+        );
+    }
+}
+
+#[test]
+fn passive_elongation_force_scale() {
+    // 20 % passive pull at 5 mm/s: force = stress × area and is positive.
+    let mut m = initialized();
+    let h = 1e-3;
+    for i in 0..2000 {
+        let t = (i + 1) as f64 * h;
+        m.set_real(Var::Length, DEFAULT_L0 + 0.005 * t).unwrap();
+        m.do_step(i as f64 * h, h).unwrap();
+    }
+    let (f, s) = (out(&m, Output::Force), out(&m, Output::Stress));
+    assert!(s > 0.0);
+    assert!((f - s * DEFAULT_AREA).abs() <= 1e-12 * f);
+    assert!(
+        (out(&m, Output::PassiveStress) - s).abs() < 1e-9 * s,
+        "no active stress without activation"
+    );
+}
