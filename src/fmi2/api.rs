@@ -268,8 +268,9 @@ fn set_values<M: Model, T: Copy>(
     apply: impl Fn(&mut M, M::Var, T) -> Result<SetOutcome, ModelError>,
 ) -> Outcome {
     let state = inst.layer.fmi_state;
-    let mut targets = Vec::with_capacity(vrs.len());
-    for (&vr, &val) in vrs.iter().zip(vals) {
+    // First pass: every reference valid, of the right type and settable now,
+    // before anything changes (no allocation: this is the hot path).
+    for &vr in vrs {
         let v = lookup(&inst.vars, &inst.log, func, vr)?;
         check_kind(&inst.log, func, vr, v, kind)?;
         if !settable_in(v, state) {
@@ -282,12 +283,13 @@ fn set_values<M: Model, T: Copy>(
             ));
             return Err(fmi2Error);
         }
-        targets.push((v.id, v.name, val));
     }
     // A multi-element set that fails half-way must leave the model as it was.
-    let backup = (targets.len() > 1).then(|| inst.model.clone());
+    let backup = (vrs.len() > 1).then(|| inst.model.clone());
     let mut warnings = Vec::new();
-    for &(id, name, val) in &targets {
+    for (&vr, &val) in vrs.iter().zip(vals) {
+        let v = &inst.vars[vr as usize];
+        let (id, name) = (v.id, v.name);
         match apply(&mut inst.model, id, val) {
             Ok(SetOutcome::Ok) => {}
             Ok(SetOutcome::Warning { message, log_once }) => {
@@ -305,13 +307,14 @@ fn set_values<M: Model, T: Copy>(
             }
         }
     }
-    if !targets.is_empty() {
+    if !vrs.is_empty() {
         inst.layer.dirty = true;
     }
     inst.log.debug(LogCategory::All, || {
-        let items: Vec<String> = targets
+        let items: Vec<String> = vrs
             .iter()
-            .map(|&(_, name, val)| format!("{name} = {}", show(val)))
+            .zip(vals)
+            .map(|(&vr, &val)| format!("{} = {}", inst.vars[vr as usize].name, show(val)))
             .collect();
         format!("{func}: {}", items.join(", "))
     });

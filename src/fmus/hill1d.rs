@@ -22,7 +22,6 @@ use crate::fmi2::{
     VarType, Variability,
 };
 use crate::law::activation::activation_step;
-use crate::law::series_element::see_stress;
 use crate::law::{solve_uniaxial, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS};
 
 /// Rest length of the paper's specimen [m].
@@ -140,10 +139,52 @@ pub struct Hill1D {
     activation_level: f64,
     history: FibreHistory,
     lambda: f64,
-    mu: f64,
+    /// q = J^(1/3) of the last solve.
+    q: f64,
+    /// Predictors of the next step's q and λs (the solvers' starting points
+    /// only: they change the cost, not the converged result).
+    predict: Predictor,
     // Outputs of the last solve and their partials d out / d input.
     outputs: [f64; N_OUT],
     partials: [[f64; N_OUT]; 2],
+}
+
+/// Second-order prediction of a solved quantity x (q or λs) for the next
+/// step: x + s_λ Δλ + s_a Δa + ẋ_h h, where s are the total sensitivities of
+/// the last solve and ẋ_h is the history-driven rate of the last step (its
+/// change not explained by Δλ and Δa, per unit time). A smooth input is then
+/// predicted to O(h²) and a jump in λ or a to first order, so most steps cost
+/// one evaluation of the law.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct Predictor {
+    /// (dq/dλ, dq/da, history rate of q)
+    q: [f64; 3],
+    /// (dλs/dλ, dλs/da, history rate of λs)
+    lambda_s: [f64; 3],
+}
+
+impl Predictor {
+    fn predict(s: &[f64; 3], x: f64, dlambda: f64, da: f64, h: f64) -> f64 {
+        x + s[0] * dlambda + s[1] * da + s[2] * h
+    }
+
+    /// The predictor after a step (h, Δλ, Δa, Δq, Δλs) that ended at `u`
+    /// (`None`: initialization, no history rate yet).
+    fn after(&self, u: &Uniaxial, step: Option<(f64, f64, f64, f64, f64)>) -> Predictor {
+        let rate =
+            |s: &[f64; 3], dx: f64, dl: f64, da: f64, h: f64| (dx - s[0] * dl - s[1] * da) / h;
+        let (rq, rls) = match step {
+            Some((h, dl, da, dq, dls)) => (
+                rate(&self.q, dq, dl, da, h),
+                rate(&self.lambda_s, dls, dl, da, h),
+            ),
+            None => (0.0, 0.0),
+        };
+        Predictor {
+            q: [u.d_dlambda.q, u.d_dactivation.q, rq],
+            lambda_s: [u.d_dlambda.lambda_s, u.d_dactivation.lambda_s, rls],
+        }
+    }
 }
 
 impl Hill1D {
@@ -151,31 +192,28 @@ impl Hill1D {
     /// input) from a solved uniaxial state; `da_du` is ∂a/∂u of the step map.
     fn evaluate(&self, u: &Uniaxial, a: f64, da_du: f64) -> ([f64; N_OUT], [[f64; N_OUT]; 2]) {
         let p = &self.params;
-        let fibre = &u.point.fibre;
-        let (sigma_s, dsigma_s) = see_stress(fibre.history.lambda_s, p.alpha, p.beta);
+        let fibre = &u.fibre;
+        // σ_s and dσ_s/dλs = α (σ_s + β) (eq 31).
+        let (sigma_s, dsigma_s) = (fibre.sigma_see, p.alpha * (fibre.sigma_see + p.beta));
         let nominal = u.nominal_stress();
         let values = [
             nominal * self.area,
             nominal,
             u.cauchy_stress(),
             a,
-            u.point.lambda_f,
+            u.lambda_f,
             fibre.history.lambda_m,
             fibre.history.lambda_s,
             sigma_s,
             nominal - sigma_s,
         ];
         // Chain rule: λ = L / L0, so d/dL = (1/L0) d/dλ; d/du = (∂a/∂u) d/da.
-        let column = |s: &crate::law::uniaxial::Sensitivity,
-                      dnom: f64,
-                      dlambda: f64,
-                      dact: f64,
-                      scale: f64| {
+        let column = |s: &crate::law::uniaxial::Sensitivity, dnom: f64, dact: f64, scale: f64| {
             let dsee = dsigma_s * s.lambda_s;
             [
                 dnom * self.area * scale,
                 dnom * scale,
-                u.dcauchy(s, dlambda) * scale,
+                u.dcauchy(s) * scale,
                 dact * scale,
                 s.lambda_f * scale,
                 ((1.0 + p.k) * s.lambda_f - p.k * s.lambda_s) * scale,
@@ -184,12 +222,40 @@ impl Hill1D {
                 (dnom - dsee) * scale,
             ]
         };
-        let d_length = column(&u.d_dlambda, u.dnominal_dlambda(), 1.0, 0.0, 1.0 / self.l0);
-        let d_act = column(&u.d_dactivation, u.dnominal_dactivation(), 0.0, 1.0, da_du);
+        let d_length = column(&u.d_dlambda, u.dnominal_dlambda(), 0.0, 1.0 / self.l0);
+        let d_act = column(&u.d_dactivation, u.dnominal_dactivation(), 1.0, da_du);
         let mut partials = [[0.0; N_OUT]; 2];
         partials[IN_LENGTH] = d_length;
         partials[IN_ACTIVATION] = d_act;
         (values, partials)
+    }
+
+    /// Make a solved state the committed one.
+    /// `h` is the step length (`None` at initialization).
+    fn commit(
+        &mut self,
+        u: &Uniaxial,
+        a: f64,
+        h: Option<f64>,
+        outputs: [f64; N_OUT],
+        partials: [[f64; N_OUT]; 2],
+    ) {
+        let step = h.map(|h| {
+            (
+                h,
+                u.lambda - self.lambda,
+                a - self.activation_level,
+                u.q - self.q,
+                u.fibre.history.lambda_s - self.history.lambda_s,
+            )
+        });
+        self.predict = self.predict.after(u, step);
+        self.activation_level = a;
+        self.history = u.fibre.history;
+        self.lambda = u.lambda;
+        self.q = u.q;
+        self.outputs = outputs;
+        self.partials = partials;
     }
 
     fn check_setup(&self) -> Result<(), ModelError> {
@@ -406,7 +472,8 @@ impl Model for Hill1D {
             activation_level: 0.0,
             history: FibreHistory::REST,
             lambda: 1.0,
-            mu: 1.0,
+            q: 1.0,
+            predict: Predictor::default(),
             outputs: [0.0; N_OUT],
             partials: [[0.0; N_OUT]; 2],
         };
@@ -529,16 +596,11 @@ impl Model for Hill1D {
             a,
             &FibreHistory::REST,
             FibreRate::Isometric,
-            lambda.sqrt().recip(),
+            1.0,
         )
         .map_err(|e| ModelError(e.0))?;
         let (outputs, partials) = self.evaluate(&u, a, da_du);
-        self.activation_level = a;
-        self.history = u.point.fibre.history;
-        self.lambda = lambda;
-        self.mu = u.mu;
-        self.outputs = outputs;
-        self.partials = partials;
+        self.commit(&u, a, None, outputs, partials);
         Ok(())
     }
 
@@ -566,14 +628,21 @@ impl Model for Hill1D {
             }
         };
         let lambda = end_length / self.l0;
-        let mu_guess = self.mu * (self.lambda / lambda).sqrt();
+        let (dl, da) = (lambda - self.lambda, a - self.activation_level);
+        let q_guess = Predictor::predict(&self.predict.q, self.q, dl, da, h);
+        let start = FibreHistory {
+            // The CE–SEE solve's starting point (module docs of hill_fibre).
+            lambda_s: Predictor::predict(&self.predict.lambda_s, self.history.lambda_s, dl, da, h)
+                .max(1.0),
+            lambda_m: self.history.lambda_m,
+        };
         let u = solve_uniaxial(
             &self.params,
             lambda,
             a,
-            &self.history,
+            &start,
             FibreRate::Step { h },
-            mu_guess,
+            q_guess,
         )
         .map_err(|e| StepError::Discard(e.0))?;
         let (outputs, partials) = self.evaluate(&u, a, da_du);
@@ -582,12 +651,7 @@ impl Model for Hill1D {
                 "non-finite output at stretch {lambda}"
             )));
         }
-        self.activation_level = a;
-        self.history = u.point.fibre.history;
-        self.lambda = lambda;
-        self.mu = u.mu;
-        self.outputs = outputs;
-        self.partials = partials;
+        self.commit(&u, a, Some(h), outputs, partials);
         // Input derivatives hold for one step (they describe the input at the
         // communication point they were set at).
         self.command_rate = 0.0;
@@ -632,7 +696,9 @@ impl Model for Hill1D {
             .f64(self.history.lambda_s)
             .f64(self.history.lambda_m)
             .f64(self.lambda)
-            .f64(self.mu)
+            .f64(self.q)
+            .f64s(&self.predict.q)
+            .f64s(&self.predict.lambda_s)
             .f64s(&self.outputs);
         for column in &self.partials {
             w.f64s(column);
@@ -668,7 +734,17 @@ impl Model for Hill1D {
             lambda_m: r.f64()?,
         };
         m.lambda = r.f64()?;
-        m.mu = r.f64()?;
+        m.q = r.f64()?;
+        let three = |r: &mut ByteReader| -> Result<[f64; 3], ModelError> {
+            let v = r.f64s()?;
+            let n = v.len();
+            v.try_into()
+                .map_err(|_| bad(format!("{n} predictor values, expected 3")))
+        };
+        m.predict = Predictor {
+            q: three(&mut r)?,
+            lambda_s: three(&mut r)?,
+        };
         let fill = |r: &mut ByteReader, dst: &mut [f64; N_OUT]| -> Result<(), ModelError> {
             let v = r.f64s()?;
             if v.len() != N_OUT {
@@ -689,10 +765,12 @@ impl Model for Hill1D {
             m.history.lambda_s,
             m.history.lambda_m,
             m.lambda,
-            m.mu,
+            m.q,
         ];
         if state
             .iter()
+            .chain(&m.predict.q)
+            .chain(&m.predict.lambda_s)
             .chain(&m.outputs)
             .chain(m.partials.iter().flatten())
             .any(|x| !x.is_finite())

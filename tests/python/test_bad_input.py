@@ -1,0 +1,239 @@
+"""Bad input is rejected and never changes the instance.
+
+A rejected set returns fmi2Error (fmpy raises FMICallException with status 3),
+logs a message naming the variable and its valid range, and leaves the
+instance as it was: its outputs are unchanged and a later legal call behaves
+as if the rejected one never happened (compared with a twin instance that
+never saw the bad call).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from ctypes import c_double, c_uint32
+
+import pytest
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import fmi2Error, fmi2OK, fmi2Warning
+
+H = 1e-3
+
+
+def set_real_status(m, name, value):
+    """fmi2SetReal of one variable; returns the fmi2Status (fmpy's setReal
+    drops it, and raises for status > warning)."""
+    vr = (c_uint32 * 1)(m.vr[name])
+    val = (c_double * 1)(value)
+    try:
+        return m.slave.fmi2SetReal(m.slave.component, vr, 1, val)
+    except FMICallException as e:
+        return e.status
+
+
+def drive(m, n, start=0):
+    """n steps of an activated stretch (the same on every instance)."""
+    for i in range(start, start + n):
+        m.step(H, length=0.05 * (1 + 0.05 * math.sin(7.0 * i * H)), activation=0.8)
+
+
+def twins(muscle, n=60):
+    """Two instances with identical histories: the one under test and the
+    reference that never sees the bad call."""
+    a, b = muscle(log=[]), muscle()
+    drive(a, n)
+    drive(b, n)
+    assert a.output_vector() == b.output_vector()
+    return a, b
+
+
+def messages(m, status=None):
+    return [msg for st, _, msg in m.log if status is None or st == status]
+
+
+def names_variable_and_range(msg, name):
+    """The message names the variable (as a whole word) and states the valid
+    range ("... must be ..." / "... [0, 1]")."""
+    named = re.search(rf"(?<![\w.]){re.escape(name)}(?![\w])", msg)
+    ranged = re.search(r"must be|range|\[0, 1\]", msg)
+    return bool(named and ranged)
+
+
+def assert_continues_like_twin(a, b, n=30, start=60):
+    drive(a, n, start)
+    drive(b, n, start)
+    assert a.output_vector() == b.output_vector()
+    assert a.get("length", "activation") == b.get("length", "activation")
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf, 0.0, -0.01, -0.0])
+def test_bad_length_is_rejected_and_changes_nothing(muscle, bad):
+    """length NaN / +-inf / 0 / negative: fmpy raises FMICallException with
+    fmi2Error; the outputs and the input's value are unchanged; the error is
+    logged naming `length`; stepping on gives exactly what an instance that
+    never saw the bad set gives."""
+    a, b = twins(muscle)
+    before = a.output_vector()
+    length_before = a.get("length")
+    with pytest.raises(FMICallException) as exc:
+        a.slave.setReal([a.vr["length"]], [bad])
+    assert exc.value.status == fmi2Error
+    assert a.output_vector() == before
+    assert a.get("length") == length_before
+    assert any(names_variable_and_range(msg, "length") for msg in messages(a, fmi2Error)), a.log
+    assert_continues_like_twin(a, b)
+
+
+def test_bad_length_then_step_without_new_set(muscle):
+    """After a rejected length the next doStep uses the last good length: the
+    same step as the twin's with that length."""
+    a, b = twins(muscle)
+    last = a.get("length")[0]
+    with pytest.raises(FMICallException):
+        a.slave.setReal([a.vr["length"]], [math.nan])
+    a.do_step(H)
+    b.step(H, length=last)
+    assert a.output_vector() == b.output_vector()
+
+
+def test_nan_activation_is_rejected_and_changes_nothing(muscle):
+    """activation NaN: fmi2Error, logged naming `activation`, no change;
+    stepping on matches the twin."""
+    a, b = twins(muscle)
+    before = a.output_vector()
+    u_before = a.get("activation")
+    with pytest.raises(FMICallException) as exc:
+        a.slave.setReal([a.vr["activation"]], [math.nan])
+    assert exc.value.status == fmi2Error
+    assert a.output_vector() == before
+    assert a.get("activation") == u_before
+    assert any(names_variable_and_range(msg, "activation") for msg in messages(a, fmi2Error)), a.log
+    assert_continues_like_twin(a, b)
+
+
+def test_rejected_pair_set_changes_nothing(muscle):
+    """A setReal of (length, activation) with a bad length is rejected as a
+    whole: the good activation in the same call does not slip through
+    either (the instance stays in its state)."""
+    a, b = twins(muscle)
+    u_before = a.get("activation")
+    with pytest.raises(FMICallException):
+        a.slave.setReal([a.vr["activation"], a.vr["length"]], [0.1, math.nan])
+    assert a.get("activation") == u_before
+    assert_continues_like_twin(a, b)
+
+
+def test_bad_input_derivative_is_rejected(muscle):
+    """A non-finite input derivative is rejected (fmi2Error) and the next
+    step is the twin's step without any derivative."""
+    a, b = twins(muscle)
+    with pytest.raises(FMICallException) as exc:
+        a.slave.setRealInputDerivatives([a.vr["length"]], [1], [math.inf])
+    assert exc.value.status == fmi2Error
+    assert_continues_like_twin(a, b)
+
+
+@pytest.mark.parametrize("value, clamped", [(1.5, 1.0), (-0.25, 0.0)])
+def test_activation_outside_unit_interval_is_clamped_with_warning(muscle, value, clamped):
+    """activation 1.5 (or -0.25): fmi2Warning with a log message, the command
+    is clamped: the instance then behaves exactly like a twin given 1.0
+    (or 0.0)."""
+    a, b = twins(muscle)
+    assert set_real_status(a, "activation", value) == fmi2Warning
+    assert any(names_variable_and_range(msg, "activation") for msg in messages(a, fmi2Warning)), a.log
+    assert a.get("activation") == [clamped]
+    assert set_real_status(b, "activation", clamped) == fmi2OK
+    for _ in range(20):
+        a.do_step(H)
+        b.do_step(H)
+    assert a.output_vector() == b.output_vector()
+    assert a.outputs()["stress"] == b.outputs()["stress"]
+
+
+@pytest.mark.parametrize("name, value", [("D", -1.0), ("kc", 0.0), ("d", 0.5), ("lambda_dot_min", 1.0),
+                                         ("sigma0", math.nan), ("L0", 0.0), ("area", -1.0),
+                                         ("initial_activation", 1.5)])
+def test_bad_parameter_before_initialization(muscle, name, value):
+    """An out-of-range parameter set after instantiation is rejected with
+    fmi2Error and a log message naming it; the instance keeps the previous
+    (default) value and initializes and steps exactly like an untouched
+    instance."""
+    a = muscle(log=[], initialize=False)
+    with pytest.raises(FMICallException) as exc:
+        a.slave.setReal([a.vr[name]], [value])
+    assert exc.value.status == fmi2Error
+    assert any(names_variable_and_range(msg, name) for msg in messages(a, fmi2Error)), a.log
+    a.initialize()  # fmi2GetReal is not allowed before initialization mode
+    b = muscle()
+    assert a.get(name) == b.get(name)
+    assert a.output_vector() == b.output_vector()
+    drive(a, 20)
+    drive(b, 20)
+    assert a.output_vector() == b.output_vector()
+
+
+@pytest.mark.parametrize("name, value", [("D", -1.0), ("kc", 0.0), ("d", 0.5), ("lambda_dot_min", 1.0)])
+def test_bad_parameter_in_initialization_mode(muscle, name, value):
+    """The same rejection in initialization mode; exitInitializationMode then
+    succeeds with the previous (valid) value."""
+    a = muscle(log=[], initialize=False)
+    a.slave.setupExperiment(startTime=0.0)
+    a.slave.enterInitializationMode()
+    with pytest.raises(FMICallException) as exc:
+        a.slave.setReal([a.vr[name]], [value])
+    assert exc.value.status == fmi2Error
+    assert any(names_variable_and_range(msg, name) for msg in messages(a, fmi2Error)), a.log
+    a.slave.exitInitializationMode()
+    a.time = 0.0
+    a.start_time = 0.0
+    b = muscle()
+    assert a.get(name) == b.get(name)
+    drive(a, 10)
+    drive(b, 10)
+    assert a.output_vector() == b.output_vector()
+
+
+@pytest.mark.parametrize("h", [0.0, -1e-3, math.nan])
+def test_non_positive_step_is_rejected(muscle, h):
+    """doStep with h <= 0 (or NaN) is an error; nothing changes and the
+    instance continues like its twin."""
+    a, b = twins(muscle)
+    before = a.output_vector()
+    with pytest.raises(FMICallException) as exc:
+        a.slave.doStep(a.time, h)
+    assert exc.value.status == fmi2Error
+    assert a.output_vector() == before
+    assert_continues_like_twin(a, b)
+
+
+@pytest.mark.parametrize("offset", [0.5, -2 * H, 10 * H])
+def test_mismatched_communication_point_is_rejected(muscle, offset):
+    """doStep at a communication point that is not the current time is an
+    error; nothing changes and the instance continues like its twin."""
+    a, b = twins(muscle)
+    before = a.output_vector()
+    with pytest.raises(FMICallException) as exc:
+        a.slave.doStep(a.time + offset, H)
+    assert exc.value.status == fmi2Error
+    assert a.output_vector() == before
+    assert_continues_like_twin(a, b)
+
+
+def test_outputs_cannot_be_set(muscle):
+    """Setting an output is refused (fmi2Error) and changes nothing."""
+    a, b = twins(muscle)
+    with pytest.raises(FMICallException):
+        a.slave.setReal([a.vr["force"]], [1.0])
+    assert a.output_vector() == b.output_vector()
+    assert_continues_like_twin(a, b)
+
+
+def test_fixed_parameter_cannot_be_set_after_initialization(muscle):
+    """Parameters are fixed: a set after initialization is refused and has
+    no effect on the continuation."""
+    a, b = twins(muscle)
+    with pytest.raises(FMICallException):
+        a.slave.setReal([a.vr["sigma0"]], [1.0e6])
+    assert a.get("sigma0") == b.get("sigma0")
+    assert_continues_like_twin(a, b)
+

@@ -1,0 +1,129 @@
+"""The FMU's packaging and model description, as fmpy reads them."""
+
+from __future__ import annotations
+
+import pytest
+
+PARAMETERS = {
+    # name: (unit, default)
+    "b": ("1", 23.46),
+    "c": ("Pa", 379.0),
+    "alpha": ("1", 10.0),
+    "beta": ("Pa", 1.0e3),
+    "A": ("1", 4.0),
+    "sigma0": ("Pa", 7.0e5),
+    "S": ("1/s", 50.0),
+    "kc": ("1", 5.0),
+    "ke": ("1", 5.0),
+    "d": ("1", 1.5),
+    "lambda_dot_min": ("1/s", -17.0),
+    "lambda_opt": ("1", 1.05),
+    "D": ("1/Pa", 1.0e-9),
+    "k": ("1", 0.3),
+    "L0": ("m", 0.05),
+    "area": ("m2", 3.141592653589793 * 0.0175**2 / 4),
+    "initial_activation": ("1", 0.0),
+}
+INPUTS = {"activation": ("1", 0.0), "length": ("m", 0.05)}
+OUTPUTS = {
+    "force": "N",
+    "stress": "Pa",
+    "cauchy_stress": "Pa",
+    "activation_level": "1",
+    "fibre_stretch": "1",
+    "ce_stretch": "1",
+    "see_stretch": "1",
+    "active_stress": "Pa",
+    "passive_stress": "Pa",
+}
+# Units whose dimension is fixed by physics (fmpy reads BaseUnit exponents).
+UNIT_DIMENSIONS = {"m": {"m": 1}, "N": {"kg": 1, "m": 1, "s": -2}, "Pa": {"kg": 1, "m": -1, "s": -2},
+                   "1/s": {"s": -1}, "1/Pa": {"kg": -1, "m": 1, "s": 2}, "m2": {"m": 2}}
+
+
+def test_validate_fmu_reports_no_problems(fmu_path):
+    """fmpy's validator (XML schema, variable names, model structure, start
+    values, causality/variability combinations, units) finds nothing."""
+    from fmpy.validation import validate_fmu
+
+    problems = validate_fmu(str(fmu_path))
+    assert problems == []
+
+
+def test_co_simulation_capabilities(loaded):
+    """The capability flags the co-simulation conventions rely on."""
+    md = loaded.model_description
+    assert md.fmiVersion == "2.0"
+    assert md.modelExchange is None
+    cs = md.coSimulation
+    assert cs is not None and cs.modelIdentifier == "HillMuscle1D"
+    assert cs.canHandleVariableCommunicationStepSize
+    assert cs.canGetAndSetFMUstate
+    assert cs.canSerializeFMUstate
+    assert cs.providesDirectionalDerivative
+    assert cs.canInterpolateInputs
+    assert cs.maxOutputDerivativeOrder == 0
+
+
+@pytest.mark.parametrize("name", sorted(PARAMETERS))
+def test_parameters(loaded, name):
+    """Each law/geometry parameter: Real, causality parameter, fixed
+    variability, its unit and the paper's Table 2 default as start value."""
+    unit, default = PARAMETERS[name]
+    v = loaded.variables[name]
+    assert (v.type, v.causality, v.variability) == ("Real", "parameter", "fixed")
+    assert v.unit == unit
+    assert float(v.start) == pytest.approx(default, rel=1e-15)
+
+
+def test_activation_dynamics_switch(loaded):
+    """The activation-dynamics switch is a fixed Boolean parameter, on by default."""
+    v = loaded.variables["activation_dynamics"]
+    assert (v.type, v.causality, v.variability) == ("Boolean", "parameter", "fixed")
+    assert v.start in (True, "true", "1", 1)
+
+
+@pytest.mark.parametrize("name", sorted(INPUTS))
+def test_inputs(loaded, name):
+    """The two continuous Real inputs with their units and start values."""
+    unit, start = INPUTS[name]
+    v = loaded.variables[name]
+    assert (v.type, v.causality, v.variability) == ("Real", "input", "continuous")
+    assert v.unit == unit
+    assert float(v.start) == start
+
+
+@pytest.mark.parametrize("name", sorted(OUTPUTS))
+def test_outputs(loaded, name):
+    """The nine continuous Real outputs, their units, and that each is listed
+    in ModelStructure/Outputs depending on both inputs."""
+    v = loaded.variables[name]
+    assert (v.type, v.causality, v.variability) == ("Real", "output", "continuous")
+    assert v.unit == OUTPUTS[name]
+    md = loaded.model_description
+    unknowns = {u.variable.name: u for u in md.outputs}
+    assert name in unknowns
+    deps = unknowns[name].dependencies
+    if deps is not None:  # absent dependencies mean "depends on everything"
+        dep_names = {d.name for d in deps}
+        assert {"activation", "length"} <= dep_names
+
+
+def test_no_unexpected_variables(loaded):
+    """Exactly the documented interface: no extra inputs or outputs."""
+    md = loaded.model_description
+    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+    outputs = {v.name for v in md.modelVariables if v.causality == "output"}
+    assert inputs == set(INPUTS)
+    assert outputs == set(OUTPUTS)
+
+
+def test_unit_definitions(loaded):
+    """Unit definitions carry the SI base-unit exponents of their names."""
+    units = {u.name: u for u in loaded.model_description.unitDefinitions}
+    for name, dims in UNIT_DIMENSIONS.items():
+        assert name in units, name
+        bu = units[name].baseUnit
+        assert bu is not None, name
+        got = {k: getattr(bu, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad") if getattr(bu, k)}
+        assert got == dims, name
