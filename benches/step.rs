@@ -96,7 +96,9 @@ fn load() -> Api {
             "dlopen failed: {:?}",
             CStr::from_ptr(libc::dlerror())
         );
-        let _ = std::fs::remove_file(&path);
+        if std::env::var_os("KEEP_BENCH_SO").is_none() {
+            let _ = std::fs::remove_file(&path);
+        }
         Api {
             _lib: lib,
             instantiate: sym(lib, "fmi2Instantiate"),

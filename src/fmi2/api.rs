@@ -87,6 +87,7 @@ unsafe fn call<M: Model>(
 }
 
 /// An input array of `n` elements (empty for `n == 0`, whatever `p` is).
+#[inline]
 unsafe fn in_slice<'a, T>(
     log: &LogSink,
     func: &str,
@@ -110,6 +111,7 @@ unsafe fn in_slice<'a, T>(
 }
 
 /// An output array of `n` elements.
+#[inline]
 unsafe fn out_slice<'a, T>(
     log: &LogSink,
     func: &str,
@@ -142,6 +144,7 @@ fn non_null<T>(log: &LogSink, func: &str, what: &str, p: *const T) -> Result<(),
     }
 }
 
+#[inline]
 fn lookup<'v, V>(
     vars: &'v [ScalarVariable<V>],
     log: &LogSink,
@@ -186,6 +189,7 @@ impl Kind {
     }
 }
 
+#[inline]
 fn check_kind<V>(
     log: &LogSink,
     func: &str,
@@ -209,6 +213,7 @@ fn check_kind<V>(
 /// In initialization mode, make the outputs consistent with what was set
 /// (FMI 2.0 spec, section 4.2.4: outputs may be read in initialization
 /// mode). On error the model is unchanged and stays dirty.
+#[inline]
 fn ensure_initialized<M: Model>(inst: &mut Instance<M>, func: &str) -> Result<(), fmi2Status> {
     if inst.layer.fmi_state == FmiState::InitializationMode && inst.layer.dirty {
         if let Err(ModelError(msg)) = inst.model.initialize() {
@@ -233,19 +238,18 @@ fn get_values<M: Model, T: Copy + std::fmt::Debug>(
     kind: Kind,
     read: impl Fn(&M, M::Var) -> T,
 ) -> Outcome {
-    let mut ids = Vec::with_capacity(vrs.len());
+    // First pass: validate (no allocation: this is the hot path).
     let mut needs_init = false;
     for &vr in vrs {
         let v = lookup(&inst.vars, &inst.log, func, vr)?;
         check_kind(&inst.log, func, vr, v, kind)?;
         needs_init |= is_computed(v);
-        ids.push(v.id);
     }
     if needs_init {
         ensure_initialized(inst, func)?;
     }
-    for (o, id) in out.iter_mut().zip(ids) {
-        *o = read(&inst.model, id);
+    for (o, &vr) in out.iter_mut().zip(vrs) {
+        *o = read(&inst.model, inst.vars[vr as usize].id);
     }
     inst.log.debug(LogCategory::All, || {
         let items: Vec<String> = vrs

@@ -21,7 +21,8 @@ use crate::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError, Unit,
     VarType, Variability,
 };
-use crate::law::activation::activation_step;
+use crate::law::activation::{activation_step, Decay};
+use crate::law::uniaxial::Sensitivity;
 use crate::law::{solve_uniaxial, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS};
 
 /// Rest length of the paper's specimen [m].
@@ -144,9 +145,87 @@ pub struct Hill1D {
     /// Predictors of the next step's q and λs (the solvers' starting points
     /// only: they change the cost, not the converged result).
     predict: Predictor,
-    // Outputs of the last solve and their partials d out / d input.
+    /// e^(−S h) of the last step (a cache: S is fixed, h usually repeats).
+    decay: Decay,
+    // Outputs of the last solve and what their partials d out / d input need.
     outputs: [f64; N_OUT],
-    partials: [[f64; N_OUT]; 2],
+    jacobian: Jacobian,
+}
+
+/// What the partial derivatives of the outputs with respect to the inputs
+/// need from the last solve. The 18 partials are formed on demand in
+/// [`Jacobian::partial`]: forming them every step would cost more than the
+/// rest of the step's bookkeeping, and only masters that call
+/// fmi2GetDirectionalDerivative use them.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct Jacobian {
+    /// Per input (activation, length): total sensitivities of the uniaxial
+    /// state with respect to the input's driver (a or λ).
+    sens: [Sensitivity; 2],
+    /// dP/d(driver).
+    dnominal: [f64; 2],
+    /// d(driver)/d(input): ∂a/∂u and 1/L0.
+    scale: [f64; 2],
+    tau11: f64,
+    j: f64,
+    /// dσ_s/dλs.
+    dsigma_see: f64,
+}
+
+impl Jacobian {
+    /// ∂ output / ∂ input (`column` is IN_ACTIVATION or IN_LENGTH).
+    fn partial(&self, out: Output, column: usize, k: f64, area: f64) -> f64 {
+        let s = &self.sens[column];
+        let dnom = self.dnominal[column];
+        let dsee = self.dsigma_see * s.lambda_s;
+        let d = match out {
+            Output::Force => dnom * area,
+            Output::Stress => dnom,
+            // σ11 = τ11 / J.
+            Output::CauchyStress => s.tau11 / self.j - self.tau11 * s.j / (self.j * self.j),
+            Output::ActivationLevel => f64::from(u8::from(column == IN_ACTIVATION)),
+            Output::FibreStretch => s.lambda_f,
+            // λm = (1 + k) λ̄f − k λs.
+            Output::CeStretch => (1.0 + k) * s.lambda_f - k * s.lambda_s,
+            Output::SeeStretch => s.lambda_s,
+            Output::ActiveStress => dsee,
+            Output::PassiveStress => dnom - dsee,
+        };
+        d * self.scale[column]
+    }
+
+    fn to_values(self) -> Vec<f64> {
+        let mut v = Vec::with_capacity(19);
+        for s in &self.sens {
+            v.extend([s.q, s.j, s.mu, s.tau11, s.lambda_f, s.lambda_s]);
+        }
+        v.extend(self.dnominal);
+        v.extend(self.scale);
+        v.extend([self.tau11, self.j, self.dsigma_see]);
+        v
+    }
+
+    fn from_values(v: &[f64]) -> Option<Jacobian> {
+        if v.len() != 19 {
+            return None;
+        }
+        let sens = |o: usize| Sensitivity {
+            q: v[o],
+            j: v[o + 1],
+            mu: v[o + 2],
+            tau11: v[o + 3],
+            lambda_f: v[o + 4],
+            lambda_s: v[o + 5],
+        };
+        Some(Jacobian {
+            sens: [sens(0), sens(6)],
+            dnominal: [v[12], v[13]],
+            scale: [v[14], v[15]],
+            tau11: v[16],
+            j: v[17],
+            dsigma_see: v[18],
+        })
+    }
 }
 
 /// Second-order prediction of a solved quantity x (q or λs) for the next
@@ -188,13 +267,11 @@ impl Predictor {
 }
 
 impl Hill1D {
-    /// Outputs and their partials with respect to (activation command, length
-    /// input) from a solved uniaxial state; `da_du` is ∂a/∂u of the step map.
-    fn evaluate(&self, u: &Uniaxial, a: f64, da_du: f64) -> ([f64; N_OUT], [[f64; N_OUT]; 2]) {
-        let p = &self.params;
+    /// Outputs and the data of their partials (the Jacobian) from a solved
+    /// uniaxial state; `da_du` is ∂a/∂u of the step map.
+    fn evaluate(&self, u: &Uniaxial, a: f64, da_du: f64) -> ([f64; N_OUT], Jacobian) {
         let fibre = &u.fibre;
-        // σ_s and dσ_s/dλs = α (σ_s + β) (eq 31).
-        let (sigma_s, dsigma_s) = (fibre.sigma_see, p.alpha * (fibre.sigma_see + p.beta));
+        let sigma_s = fibre.sigma_see;
         let nominal = u.nominal_stress();
         let values = [
             nominal * self.area,
@@ -207,27 +284,21 @@ impl Hill1D {
             sigma_s,
             nominal - sigma_s,
         ];
-        // Chain rule: λ = L / L0, so d/dL = (1/L0) d/dλ; d/du = (∂a/∂u) d/da.
-        let column = |s: &crate::law::uniaxial::Sensitivity, dnom: f64, dact: f64, scale: f64| {
-            let dsee = dsigma_s * s.lambda_s;
-            [
-                dnom * self.area * scale,
-                dnom * scale,
-                u.dcauchy(s) * scale,
-                dact * scale,
-                s.lambda_f * scale,
-                ((1.0 + p.k) * s.lambda_f - p.k * s.lambda_s) * scale,
-                s.lambda_s * scale,
-                dsee * scale,
-                (dnom - dsee) * scale,
-            ]
+        let mut jacobian = Jacobian {
+            tau11: u.tau11,
+            j: u.j,
+            // dσ_s/dλs = α (σ_s + β) (eq 31).
+            dsigma_see: self.params.alpha * (sigma_s + self.params.beta),
+            ..Jacobian::default()
         };
-        let d_length = column(&u.d_dlambda, u.dnominal_dlambda(), 0.0, 1.0 / self.l0);
-        let d_act = column(&u.d_dactivation, u.dnominal_dactivation(), 1.0, da_du);
-        let mut partials = [[0.0; N_OUT]; 2];
-        partials[IN_LENGTH] = d_length;
-        partials[IN_ACTIVATION] = d_act;
-        (values, partials)
+        // Chain rule: λ = L / L0, so d/dL = (1/L0) d/dλ; d/du = (∂a/∂u) d/da.
+        jacobian.sens[IN_LENGTH] = u.d_dlambda;
+        jacobian.dnominal[IN_LENGTH] = u.dnominal_dlambda();
+        jacobian.scale[IN_LENGTH] = 1.0 / self.l0;
+        jacobian.sens[IN_ACTIVATION] = u.d_dactivation;
+        jacobian.dnominal[IN_ACTIVATION] = u.dnominal_dactivation();
+        jacobian.scale[IN_ACTIVATION] = da_du;
+        (values, jacobian)
     }
 
     /// Make a solved state the committed one.
@@ -238,7 +309,7 @@ impl Hill1D {
         a: f64,
         h: Option<f64>,
         outputs: [f64; N_OUT],
-        partials: [[f64; N_OUT]; 2],
+        jacobian: Jacobian,
     ) {
         let step = h.map(|h| {
             (
@@ -255,7 +326,7 @@ impl Hill1D {
         self.lambda = u.lambda;
         self.q = u.q;
         self.outputs = outputs;
-        self.partials = partials;
+        self.jacobian = jacobian;
     }
 
     fn check_setup(&self) -> Result<(), ModelError> {
@@ -474,8 +545,9 @@ impl Model for Hill1D {
             lambda: 1.0,
             q: 1.0,
             predict: Predictor::default(),
+            decay: Decay::NONE,
             outputs: [0.0; N_OUT],
-            partials: [[0.0; N_OUT]; 2],
+            jacobian: Jacobian::default(),
         };
         // Outputs at the start values are those of the initial equilibrium.
         m.initialize().expect("the default start values are valid");
@@ -599,8 +671,8 @@ impl Model for Hill1D {
             1.0,
         )
         .map_err(|e| ModelError(e.0))?;
-        let (outputs, partials) = self.evaluate(&u, a, da_du);
-        self.commit(&u, a, None, outputs, partials);
+        let (outputs, jacobian) = self.evaluate(&u, a, da_du);
+        self.commit(&u, a, None, outputs, jacobian);
         Ok(())
     }
 
@@ -611,6 +683,8 @@ impl Model for Hill1D {
                 "length at the end of the step, length + h * der(length) = {end_length}, must be finite and > 0"
             )));
         }
+        // Updated in a copy: on a discard the model must stay unchanged.
+        let mut decay = self.decay;
         let (a, da_du) = if self.activation_dynamics {
             activation_step(
                 self.activation_level,
@@ -618,6 +692,7 @@ impl Model for Hill1D {
                 self.command_rate,
                 self.params.s,
                 h,
+                decay.of(self.params.s, h),
             )
         } else {
             let a = self.command + h * self.command_rate;
@@ -645,13 +720,14 @@ impl Model for Hill1D {
             q_guess,
         )
         .map_err(|e| StepError::Discard(e.0))?;
-        let (outputs, partials) = self.evaluate(&u, a, da_du);
+        let (outputs, jacobian) = self.evaluate(&u, a, da_du);
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(StepError::Discard(format!(
                 "non-finite output at stretch {lambda}"
             )));
         }
-        self.commit(&u, a, Some(h), outputs, partials);
+        self.commit(&u, a, Some(h), outputs, jacobian);
+        self.decay = decay;
         // Input derivatives hold for one step (they describe the input at the
         // communication point they were set at).
         self.command_rate = 0.0;
@@ -670,7 +746,7 @@ impl Model for Hill1D {
             }
         };
         match unknown {
-            Var::Out(o) => Ok(self.partials[column][o as usize]),
+            Var::Out(o) => Ok(self.jacobian.partial(o, column, self.params.k, self.area)),
             _ => Err(ModelError(
                 "directional derivatives are provided for the outputs".into(),
             )),
@@ -699,10 +775,9 @@ impl Model for Hill1D {
             .f64(self.q)
             .f64s(&self.predict.q)
             .f64s(&self.predict.lambda_s)
-            .f64s(&self.outputs);
-        for column in &self.partials {
-            w.f64s(column);
-        }
+            .f64s(&[self.decay.s, self.decay.h, self.decay.value])
+            .f64s(&self.outputs)
+            .f64s(&self.jacobian.to_values());
     }
 
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
@@ -745,6 +820,8 @@ impl Model for Hill1D {
             q: three(&mut r)?,
             lambda_s: three(&mut r)?,
         };
+        let [s, h, value] = three(&mut r)?;
+        m.decay = Decay { s, h, value };
         let fill = |r: &mut ByteReader, dst: &mut [f64; N_OUT]| -> Result<(), ModelError> {
             let v = r.f64s()?;
             if v.len() != N_OUT {
@@ -754,9 +831,9 @@ impl Model for Hill1D {
             Ok(())
         };
         fill(&mut r, &mut m.outputs)?;
-        for column in 0..2 {
-            fill(&mut r, &mut m.partials[column])?;
-        }
+        let jacobian = r.f64s()?;
+        m.jacobian = Jacobian::from_values(&jacobian)
+            .ok_or_else(|| bad(format!("{} Jacobian values, expected 19", jacobian.len())))?;
         let state = [
             m.command,
             m.command_rate,
@@ -772,7 +849,7 @@ impl Model for Hill1D {
             .chain(&m.predict.q)
             .chain(&m.predict.lambda_s)
             .chain(&m.outputs)
-            .chain(m.partials.iter().flatten())
+            .chain(&m.jacobian.to_values())
             .any(|x| !x.is_finite())
         {
             return Err(bad("a non-finite value".into()));

@@ -7,9 +7,10 @@
 /// da/dt = S (u − a)):
 /// a(h) = u0 + u_dot h − u_dot/S + (a0 − u0 + u_dot/S) e^(−S h).
 /// With `u_dot = 0` this is a(h) = u0 + (a0 − u0) e^(−S h) (MODEL_NOTES).
-/// Returns the level (clamped to [0, 1]) and ∂a(h)/∂u0 = 1 − e^(−S h).
-pub fn activation_step(a0: f64, u0: f64, u_dot: f64, s: f64, h: f64) -> (f64, f64) {
-    let e = (-s * h).exp();
+/// `decay` is e^(−S h) (see [`Decay`]). Returns the level (clamped to
+/// [0, 1]) and ∂a(h)/∂u0 = 1 − e^(−S h).
+pub fn activation_step(a0: f64, u0: f64, u_dot: f64, s: f64, h: f64, decay: f64) -> (f64, f64) {
+    let e = decay;
     let a = if u_dot == 0.0 {
         u0 + (a0 - u0) * e
     } else {
@@ -26,6 +27,37 @@ pub fn activation_step(a0: f64, u0: f64, u_dot: f64, s: f64, h: f64) -> (f64, f6
     }
 }
 
+/// The decay factor e^(−S h) of [`activation_step`], kept for the last (S, h):
+/// a co-simulation usually repeats its step size, so the exponential is
+/// evaluated once instead of every step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Decay {
+    pub s: f64,
+    pub h: f64,
+    pub value: f64,
+}
+
+impl Decay {
+    /// No step seen yet.
+    pub const NONE: Decay = Decay {
+        s: f64::NAN,
+        h: f64::NAN,
+        value: f64::NAN,
+    };
+
+    /// e^(−S h), recomputed only when S or h changed.
+    pub fn of(&mut self, s: f64, h: f64) -> f64 {
+        if s != self.s || h != self.h {
+            *self = Decay {
+                s,
+                h,
+                value: (-s * h).exp(),
+            };
+        }
+        self.value
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -37,13 +69,16 @@ mod tests {
         let s = 50.0;
         let mut a = 0.0;
         for _ in 0..10 {
-            a = activation_step(a, 1.0, 0.0, s, 0.01).0;
+            a = activation_step(a, 1.0, 0.0, s, 0.01, f64::exp(-s * 0.01)).0;
         }
-        let one = activation_step(0.0, 1.0, 0.0, s, 0.1).0;
+        let one = activation_step(0.0, 1.0, 0.0, s, 0.1, f64::exp(-s * 0.1)).0;
         assert!((a - one).abs() < 1e-14);
         assert!((one - (1.0 - (-5.0f64).exp())).abs() < 1e-15);
         // Huge S h: lands on the command, no overshoot.
-        assert_eq!(activation_step(0.3, 0.7, 0.0, 1e5, 1.0).0, 0.7);
+        assert_eq!(
+            activation_step(0.3, 0.7, 0.0, 1e5, 1.0, f64::exp(-1e5 * 1.0)).0,
+            0.7
+        );
     }
 
     #[test]
@@ -57,15 +92,23 @@ mod tests {
             let u = u0 + ud * (i as f64 + 0.5) * dt;
             a = u + (a - u) * (-s * dt).exp();
         }
-        let exact = activation_step(a0, u0, ud, s, h).0;
+        let exact = activation_step(a0, u0, ud, s, h, f64::exp(-s * h)).0;
         assert!((a - exact).abs() < 1e-9, "{a} vs {exact}");
     }
 
     #[test]
+    fn decay_is_cached_per_step_size() {
+        let mut d = Decay::NONE;
+        assert_eq!(d.of(50.0, 1e-3), (-50.0f64 * 1e-3).exp());
+        assert_eq!(d.of(50.0, 2e-3), (-50.0f64 * 2e-3).exp());
+        assert_eq!(d.of(60.0, 2e-3), (-60.0f64 * 2e-3).exp());
+    }
+
+    #[test]
     fn derivative_wrt_command() {
-        let (a, da) = activation_step(0.2, 0.5, 0.0, 50.0, 0.01);
+        let (a, da) = activation_step(0.2, 0.5, 0.0, 50.0, 0.01, f64::exp(-50.0 * 0.01));
         let h = 1e-7;
-        let fd = (activation_step(0.2, 0.5 + h, 0.0, 50.0, 0.01).0 - a) / h;
+        let fd = (activation_step(0.2, 0.5 + h, 0.0, 50.0, 0.01, f64::exp(-50.0 * 0.01)).0 - a) / h;
         assert!((fd - da).abs() < 1e-7);
     }
 }

@@ -33,6 +33,46 @@ pub fn force_velocity(
     }
 }
 
+/// d²f_v/dλ̇m² of [`force_velocity`] (for the CE–SEE solve's error estimate):
+/// shortening, d²/dx² (1 − x)/(1 + k_c x) = 2 k_c (1 + k_c)/(1 + k_c x)³ (0 for
+/// x ≥ 1); lengthening, −(d − 1) d²/dx² (1 + x)/(1 − K x) = −(d − 1) 2 K (1 + K)/(1 − K x)³
+/// with K = k_e k_c; divided by (λ̇_m^min)².
+pub fn force_velocity_curvature(
+    lambda_dot_m: f64,
+    lambda_dot_min: f64,
+    kc: f64,
+    ke: f64,
+    d: f64,
+) -> f64 {
+    let x = lambda_dot_m / lambda_dot_min;
+    let scale = 1.0 / (lambda_dot_min * lambda_dot_min);
+    if lambda_dot_m <= 0.0 {
+        if x >= 1.0 {
+            0.0
+        } else {
+            let den = 1.0 + kc * x;
+            2.0 * kc * (1.0 + kc) / (den * den * den) * scale
+        }
+    } else {
+        let kk = ke * kc;
+        let den = 1.0 - kk * x;
+        -(d - 1.0) * 2.0 * kk * (1.0 + kk) / (den * den * den) * scale
+    }
+}
+
+/// Which smooth piece of f_v a CE rate lies on: lengthening, shortening
+/// slower than the maximum rate, or faster (f_v = 0). f_v has kinks between them.
+/// (x < 1 ⇔ λ̇m > λ̇_m^min, as λ̇_m^min < 0: compared without a division.)
+pub fn force_velocity_branch(lambda_dot_m: f64, lambda_dot_min: f64) -> u8 {
+    if lambda_dot_m > 0.0 {
+        0
+    } else if lambda_dot_m > lambda_dot_min {
+        1
+    } else {
+        2
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

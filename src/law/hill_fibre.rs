@@ -16,7 +16,7 @@
 //! uses λ̄f(t)), which makes the step map a function of the end state only.
 
 use super::force_length::force_length;
-use super::force_velocity::force_velocity;
+use super::force_velocity::{force_velocity, force_velocity_branch, force_velocity_curvature};
 use super::parallel_element::pe_stress;
 use super::params::Params;
 use super::root_finding::{safeguarded_newton, RootError};
@@ -209,21 +209,38 @@ fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64
     // R' > 0 can only be at its unique root. Anything else — a step below
     // λs = 1, a non-finite value, no convergence in 3 iterations — goes to the
     // bracketed iteration below.
+    // The root lies below 1 + drive f_v,max / (α β) (σ_s(λs) ≥ α β (λs − 1)):
+    // an iterate beyond it has left the region where the fast path is safe
+    // (σ_s' may overflow there, making any correction look converged).
+    let beyond = 1.0 + drive * p.fv_max() / (p.alpha * p.beta);
     let mut x = hist.lambda_s.max(1.0);
+    let k_over_h = p.k / h;
     for iteration in 1..=3u32 {
+        if x > beyond {
+            break;
+        }
         let e = evaluate(x);
         let (r, dr) = residual_of(&e);
         let step = r / dr;
-        if !(step.is_finite() && dr > 0.0) {
+        if !(r.is_finite() && dr.is_finite() && dr > 0.0) {
             break;
         }
-        // Accepting a correction δ ≤ 1e-10 to first order leaves an error
-        // ~ (R''/R') δ² ≲ 1e4 δ² ≈ 1e-16, so a well-predicted start costs one
-        // evaluation.
-        if step.abs() <= 1e-10 && x - step > 1.0 {
-            return accept(e, x - step, iteration, p.k / h);
+        let next = x - step;
+        // Applying the correction δ to first order leaves an error of about
+        // C δ² with C = |R''| / (2 R'), R'' = α σ_s' − drive f_v'' (k/h)²
+        // (σ_s'' = α σ_s', eq 31), valid while x and x − δ lie on the same
+        // smooth piece of f_v. Accept when that is below 1e-15 (δ ≤ 1e-6).
+        if step.abs() <= 1e-6 && next > 1.0 {
+            let rate = ce_rate(x);
+            let same_piece = force_velocity_branch(rate, p.lambda_dot_min)
+                == force_velocity_branch(ce_rate(next), p.lambda_dot_min);
+            let curvature = force_velocity_curvature(rate, p.lambda_dot_min, p.kc, p.ke, p.d);
+            let r2 = p.alpha * e.dsigma - drive * curvature * k_over_h * k_over_h;
+            if same_piece && r2.abs() / (2.0 * dr) * step * step <= 1e-15 {
+                return accept(e, next, iteration, k_over_h);
+            }
         }
-        x -= step;
+        x = next;
         if x <= 1.0 {
             break;
         }
@@ -263,7 +280,9 @@ fn accept(e: SeeSolution, ls: f64, iterations: u32, k_over_h: f64) -> SeeSolutio
     let delta = ls - e.lambda_s;
     SeeSolution {
         lambda_s: ls,
-        sigma: e.sigma + e.dsigma * delta,
+        // σ_s(λs > 1) > 0; the first-order value may fall below 0 by round-off
+        // (~1e-10 Pa) next to λs = 1.
+        sigma: (e.sigma + e.dsigma * delta).max(0.0),
         fv: e.fv - e.dfv * k_over_h * delta,
         iterations,
         ..e
@@ -427,6 +446,35 @@ mod tests {
             "dW/da: fd {fd_a} vs {} at lf={lf} a={a} {rate:?}",
             r.dw_dactivation
         );
+    }
+
+    #[test]
+    fn a_cold_start_far_from_the_root_converges_to_it() {
+        // Regression: from λs = 1 during fast lengthening (f_v flat at its
+        // maximum, R' ≈ α β) the first Newton step lands at λs ≈ 71, where
+        // σ_s' overflows to +∞ and the correction R/R' = 0 used to be taken
+        // for convergence (then σ_s = NaN, clamped to 0).
+        let p = Params::default();
+        let hist = FibreHistory {
+            lambda_s: 1.0,
+            lambda_m: 0.858_496_553_242_002_1,
+        };
+        for lf in [1.0275, 1.03] {
+            let r = fibre_response(
+                &p,
+                lf,
+                0.670_441_038_924_811,
+                &hist,
+                FibreRate::Step { h: 1e-4 },
+            );
+            let reference = bisection(&p, lf, 0.670_441_038_924_811, &hist, 1e-4);
+            assert!(
+                (r.history.lambda_s - reference).abs() < 1e-12,
+                "{} vs {reference}",
+                r.history.lambda_s
+            );
+            assert!(r.w.is_finite() && r.sigma_see > 0.0);
+        }
     }
 
     #[test]

@@ -80,7 +80,7 @@ where
         // Converged: a Newton correction below `xtol` is applied and accepted
         // (its own error is O(step²)). Checked before the bracket test, since a
         // correction below the rounding of x lands on the bracket end.
-        if dr > 0.0 && step.abs() <= xtol {
+        if dr > 0.0 && dr.is_finite() && step.abs() <= xtol {
             return Ok(Root {
                 x: newton.clamp(lo, hi),
                 slope: dr,
@@ -140,6 +140,15 @@ mod tests {
         let f = |x: f64| (3.4e8 * (x - root) - 5e-9, 3.4e8);
         let r = safeguarded_newton(f, 1.0, 1.7, root, 1e-15).unwrap();
         assert!(r.iterations <= 2, "{} iterations", r.iterations);
+    }
+
+    #[test]
+    fn an_infinite_slope_is_not_convergence() {
+        // f' overflows to +∞ far above the root: r/f' = 0 there must not be
+        // taken for a converged correction.
+        let f = |x: f64| (x - 0.25, if x > 0.9 { f64::INFINITY } else { 1.0 });
+        let r = safeguarded_newton(f, 0.0, 1.0, 0.95, 1e-12).unwrap();
+        assert!((r.x - 0.25).abs() < 1e-12, "{}", r.x);
     }
 
     #[test]
