@@ -153,6 +153,9 @@ impl<const K: u8> Model for LagM<K> {
             ],
             default_experiment: (0.0, 10.0, 1e-2),
             max_input_derivative_order: 1,
+            // The lag changes y only in fmi2DoStep, but this test model declares
+            // feedthrough so that the generator's dependency branch stays tested.
+            direct_feedthrough: true,
         }
     }
 
@@ -2046,8 +2049,8 @@ fn debug_logging_categories() {
         && e.category == "logEvents"
         && e.message.contains("stepComplete")));
 
-    // Only logEvents.
-    f.ok(unsafe { api::set_debug_logging::<Lag>(f.c, fmi2False, 0, std::ptr::null()) });
+    // Only logEvents: straight from "all on", the list replaces the
+    // selection (no `(false, 0)` first).
     let cats = [c"logEvents".as_ptr()];
     f.ok(unsafe { api::set_debug_logging::<Lag>(f.c, fmi2True, 1, cats.as_ptr()) });
     f.clear_logs();
@@ -2078,6 +2081,138 @@ fn debug_logging_categories() {
     let g = Fmu::<Lag>::named("quiet", false);
     assert_eq!(g.step(0.0, 0.1), fmi2Error);
     assert!(g.has_log(fmi2Error, "not allowed in state instantiated"));
+}
+
+/// `fmi2SetDebugLogging(c, loggingOn, categories)` through the C signature.
+fn set_logging(f: &Fmu<Lag>, on: bool, cats: &[&CStr]) -> fmi2Status {
+    let ptrs: Vec<fmi2String> = cats.iter().map(|c| c.as_ptr()).collect();
+    let on = if on { fmi2True } else { fmi2False };
+    unsafe { api::set_debug_logging::<Lag>(f.c, on, ptrs.len(), ptrs.as_ptr()) }
+}
+
+/// Calls that log debug messages of both categories (from an instantiated
+/// instance): initialization and the step (`logEvents` on state changes,
+/// `logAll` for every call), a set, an FMU state saved and freed; then a
+/// rejected set (an error). Returns the categories of the debug messages
+/// (status `fmi2OK`) logged, and whether the error was logged.
+fn exercise(f: &Fmu<Lag>) -> (Vec<String>, bool) {
+    f.clear_logs();
+    f.ok(unsafe { api::setup_experiment::<Lag>(f.c, fmi2False, 0.0, 0.0, fmi2False, 0.0) });
+    f.ok(unsafe { api::enter_initialization_mode::<Lag>(f.c) });
+    f.ok(f.set_real(&[U], &[0.25]));
+    f.ok(unsafe { api::exit_initialization_mode::<Lag>(f.c) });
+    f.ok(f.step(0.0, 0.1));
+    let s = f.save();
+    f.free_state(s);
+    assert_eq!(f.set_integer(&[MODE], &[9]), fmi2Error);
+    let logs = f.logs();
+    let mut cats: Vec<String> = logs
+        .iter()
+        .filter(|e| e.status == fmi2OK)
+        .map(|e| e.category.clone())
+        .collect();
+    cats.sort();
+    cats.dedup();
+    let error = logs
+        .iter()
+        .any(|e| e.status == fmi2Error && e.category == "logStatusError");
+    (cats, error)
+}
+
+#[test]
+fn debug_logging_with_categories_logs_only_those_categories() {
+    // FMI 2.0 section 2.1.5: "If loggingOn=fmi2True and nCategories > 0,
+    // then only debug messages according to the categories argument shall
+    // be output." From a fresh instance, whether it was instantiated with
+    // loggingOn true (all on) or false (all off).
+    for instantiated_on in [true, false] {
+        let f = Fmu::<Lag>::named("dbg", instantiated_on);
+        f.ok(set_logging(&f, true, &[c"logEvents"]));
+        let (cats, error) = exercise(&f);
+        assert_eq!(
+            cats,
+            ["logEvents"],
+            "loggingOn at instantiation {instantiated_on}"
+        );
+        assert!(error);
+        // The state changes were among them.
+        assert!(f.logs().iter().any(|e| e.status == fmi2OK
+            && e.category == "logEvents"
+            && e.message.contains("stepComplete")));
+    }
+
+    // logAll selects every debug message.
+    let f = Fmu::<Lag>::named("dbg", false);
+    f.ok(set_logging(&f, true, &[c"logAll"]));
+    assert_eq!(exercise(&f).0, ["logAll", "logEvents"]);
+
+    // A later list replaces the earlier selection instead of adding to it.
+    let f = Fmu::<Lag>::named("dbg", false);
+    f.ok(set_logging(&f, true, &[c"logAll"]));
+    f.ok(set_logging(&f, true, &[c"logEvents"]));
+    assert_eq!(exercise(&f).0, ["logEvents"]);
+
+    // A status category only: no debug message at all; errors still logged.
+    let f = Fmu::<Lag>::named("dbg", true);
+    f.ok(set_logging(&f, true, &[c"logStatusError"]));
+    let (cats, error) = exercise(&f);
+    assert!(cats.is_empty(), "{cats:?}");
+    assert!(error);
+
+    // nCategories = 0 turns all of them on again.
+    let f = Fmu::<Lag>::named("dbg", false);
+    f.ok(set_logging(&f, true, &[c"logEvents"]));
+    f.ok(set_logging(&f, true, &[]));
+    assert_eq!(exercise(&f).0, ["logAll", "logEvents"]);
+}
+
+#[test]
+fn debug_logging_off_switches_all_debug_logging_off() {
+    // FMI 2.0 section 2.1.5: "If loggingOn = fmi2True, debug logging is
+    // enabled, otherwise it is switched off." The categories do not narrow
+    // loggingOn = fmi2False: (false, [logAll]) silences logEvents as well.
+    for cats in [&[][..], &[c"logAll"][..], &[c"logEvents"][..]] {
+        let f = Fmu::<Lag>::named("dbg", true);
+        f.ok(set_logging(&f, true, &[c"logAll", c"logEvents"]));
+        f.ok(set_logging(&f, false, cats));
+        let (seen, error) = exercise(&f);
+        assert!(seen.is_empty(), "after (false, {cats:?}): {seen:?}");
+        // Errors are always logged (src/fmi2/mod.rs, "Logging").
+        assert!(error);
+    }
+}
+
+#[test]
+fn unknown_debug_log_category_is_rejected_and_changes_nothing() {
+    let f = Fmu::<Lag>::named("dbg", false);
+    f.ok(set_logging(&f, true, &[c"logEvents"]));
+    for on in [true, false] {
+        f.clear_logs();
+        assert_eq!(
+            set_logging(&f, on, &[c"logAll", c"logBogus", c"logEvents"]),
+            fmi2Error
+        );
+        let logs = f.logs();
+        let e = logs
+            .iter()
+            .find(|e| e.status == fmi2Error)
+            .expect("an error message");
+        assert_eq!(e.category, "logStatusError");
+        assert!(e.message.contains("'logBogus'"), "{}", e.message);
+        for valid in [
+            "logStatusWarning",
+            "logStatusDiscard",
+            "logStatusError",
+            "logStatusFatal",
+            "logAll",
+            "logEvents",
+        ] {
+            assert!(e.message.contains(valid), "{valid} in {}", e.message);
+        }
+    }
+    // Still exactly logEvents: neither the valid names before and after the
+    // bad one nor loggingOn took effect.
+    assert_eq!(exercise(&f).0, ["logEvents"]);
 }
 
 #[test]

@@ -56,3 +56,38 @@ fn hill1d_model_description_is_committed_and_valid() {
     }
     check_committed("HillMuscle1D", &xml);
 }
+
+#[test]
+fn hill1d_model_structure_has_the_real_dependencies() {
+    use hill_muscle::fmi2::model_description::{initial_unknown_dependencies, output_dependencies};
+    use hill_muscle::fmi2::Model;
+    let vars = Hill1D::variables();
+    let index = |name: &str| 1 + vars.iter().position(|v| v.name == name).unwrap();
+    let names = |deps: &[usize]| -> Vec<&str> { deps.iter().map(|&i| vars[i - 1].name).collect() };
+    // No direct feedthrough: outputs change only in fmi2DoStep.
+    for (_, deps) in output_dependencies(&Hill1D::info(), &vars) {
+        assert!(deps.is_empty());
+    }
+    let initial = initial_unknown_dependencies(&vars);
+    assert_eq!(initial.len(), 9);
+    let of = |name: &str| names(&initial.iter().find(|(i, _)| *i == index(name)).unwrap().1);
+    let mut level = of("activation_level");
+    level.sort_unstable();
+    assert_eq!(
+        level,
+        ["activation", "activation_dynamics", "initial_activation"]
+    );
+    let force = of("force");
+    let stress = of("stress");
+    assert!(force.contains(&"area") && !stress.contains(&"area"));
+    for name in ["length", "L0", "sigma0", "D", "b", "activation"] {
+        assert!(stress.contains(&name), "stress at t0 depends on {name}");
+    }
+    // The isometric start does not involve the force-velocity relation or S.
+    for name in ["S", "kc", "ke", "d", "lambda_dot_min"] {
+        assert!(
+            !force.contains(&name),
+            "force at t0 does not depend on {name}"
+        );
+    }
+}

@@ -470,9 +470,11 @@ pub unsafe fn free_instance<M: Model>(c: fmi2Component) {
     }));
 }
 
-/// `fmi2SetDebugLogging` (FMI 2.0 spec, section 2.1.5). `nCategories == 0`
-/// applies `loggingOn` to all categories; otherwise to the named ones. An
-/// unknown category name rejects the whole call.
+/// `fmi2SetDebugLogging` (FMI 2.0 spec, section 2.1.5), with the semantics
+/// documented at [`LogSink::set_debug_logging`]: `(true, [])` enables all
+/// debug categories, `(true, list)` exactly the listed ones, `(false, _)`
+/// switches debug logging off. An unknown (or NULL) category name rejects
+/// the whole call with `fmi2Error` and changes nothing.
 ///
 /// # Safety
 /// `c` a live instance; `categories` `nCategories` valid C strings.

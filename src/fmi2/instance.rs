@@ -107,12 +107,16 @@ pub struct LogSink {
     name: CString,
     logger: fmi2CallbackLogger,
     env: fmi2ComponentEnvironment,
-    logging_on: bool,
+    /// Per-category debug logging flags, indexed by [`LogCategory`]. Debug
+    /// logging is "on" exactly when one of them is set; the `logStatus*`
+    /// flags select no debug message (those messages are always logged).
     enabled: [bool; 6],
 }
 
 impl LogSink {
     /// `callbacks` may be absent or have a NULL logger: then nothing is logged.
+    /// `logging_on` is `fmi2Instantiate`'s `loggingOn`: all debug categories
+    /// on, or all off.
     pub fn new(name: CString, callbacks: Option<fmi2CallbackFunctions>, logging_on: bool) -> Self {
         let (logger, env) = match callbacks {
             Some(cb) => (cb.logger, cb.componentEnvironment),
@@ -122,8 +126,7 @@ impl LogSink {
             name,
             logger,
             env,
-            logging_on,
-            enabled: [true; 6],
+            enabled: [logging_on; 6],
         }
     }
 
@@ -167,7 +170,6 @@ impl LogSink {
     /// Whether a debug message of `category` would be logged.
     pub fn debug_on(&self, category: LogCategory) -> bool {
         self.logger.is_some()
-            && self.logging_on
             && (self.enabled[category as usize] || self.enabled[LogCategory::All as usize])
     }
 
@@ -178,17 +180,42 @@ impl LogSink {
         }
     }
 
-    /// `fmi2SetDebugLogging` (FMI 2.0 spec, section 2.1.5): `categories`
-    /// empty means all categories.
+    /// `fmi2SetDebugLogging`, after the caller has checked every category
+    /// name (an unknown name must reject the call before anything changes).
+    ///
+    /// FMI 2.0 spec, section 2.1.5: "If loggingOn = fmi2True, debug logging
+    /// is enabled, otherwise it is switched off. If loggingOn = fmi2True and
+    /// nCategories = 0, then all debug messages shall be output. If
+    /// loggingOn=fmi2True and nCategories > 0, then only debug messages
+    /// according to the categories argument shall be output." Hence:
+    ///
+    /// - `(true, [])`: every debug category is enabled.
+    /// - `(true, list)`: exactly the listed categories are enabled and all
+    ///   others disabled ("only ... according to the categories argument"),
+    ///   whatever was enabled before; the list replaces the selection, it
+    ///   does not add to it. `logAll` selects every debug message; a
+    ///   `logStatus*` name selects none (those messages are always logged),
+    ///   so `(true, ["logStatusError"])` leaves no debug message on.
+    /// - `(false, _)`: debug logging is switched off, all categories. The
+    ///   standard gives `categories` no meaning when `loggingOn` is false
+    ///   ("otherwise it is switched off"), so a list does not narrow it to
+    ///   "switch off only these": `(false, ["logAll"])` also silences
+    ///   `logEvents`. The names are still checked by the caller.
+    ///
+    /// Messages with status `fmi2Warning` or worse do not depend on any of
+    /// this: they are always logged.
     pub fn set_debug_logging(&mut self, logging_on: bool, categories: &[LogCategory]) {
-        self.logging_on = logging_on;
-        if categories.is_empty() {
-            self.enabled = [logging_on; 6];
-        } else {
-            for c in categories {
-                self.enabled[*c as usize] = logging_on;
+        let mut enabled = [false; 6];
+        if logging_on {
+            if categories.is_empty() {
+                enabled = [true; 6];
+            } else {
+                for c in categories {
+                    enabled[*c as usize] = true;
+                }
             }
         }
+        self.enabled = enabled;
     }
 }
 

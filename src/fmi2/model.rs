@@ -95,6 +95,12 @@ pub struct ModelInfo {
     /// Highest order of input derivative the model uses (canInterpolateInputs
     /// is true when this is at least 1).
     pub max_input_derivative_order: i32,
+    /// Whether an input set at a communication point changes outputs at that
+    /// point (FMI 2.0 section 2.2.8: `<Outputs>` dependencies are those "at
+    /// Communication Points"). `false` for a model whose outputs change only in
+    /// fmi2DoStep: its `<Outputs>` then list no dependencies, while
+    /// `<InitialUnknowns>` keep the `depends_on` of each output.
+    pub direct_feedthrough: bool,
 }
 
 /// Error raised by a model; the layer logs the message (prefixed with the

@@ -92,6 +92,7 @@ pub fn canonical_interface_text<V>(info: &ModelInfo, vars: &[ScalarVariable<V>])
         "maxInputDerivativeOrder {}",
         info.max_input_derivative_order
     );
+    let _ = writeln!(s, "directFeedthrough {}", info.direct_feedthrough);
     for u in &info.units {
         let _ = writeln!(s, "unit {} kg={} m={} s={}", u.name, u.kg, u.m, u.s);
     }
@@ -204,16 +205,23 @@ fn dependency_indices<V>(
     idx
 }
 
-/// `<Outputs>` entries: (1-based index, dependencies).
-pub fn output_dependencies<V>(vars: &[ScalarVariable<V>]) -> Vec<(usize, Vec<usize>)> {
+/// `<Outputs>` entries: (1-based index, dependencies). Without direct
+/// feedthrough ([`ModelInfo::direct_feedthrough`]) no output depends on an
+/// input at a communication point, so every list is empty.
+pub fn output_dependencies<V>(
+    info: &ModelInfo,
+    vars: &[ScalarVariable<V>],
+) -> Vec<(usize, Vec<usize>)> {
     vars.iter()
         .enumerate()
         .filter(|(_, v)| v.causality == Causality::Output)
         .map(|(i, v)| {
-            (
-                i + 1,
-                dependency_indices(vars, v, |d| d.causality == Causality::Input),
-            )
+            let deps = if info.direct_feedthrough {
+                dependency_indices(vars, v, |d| d.causality == Causality::Input)
+            } else {
+                Vec::new()
+            };
+            (i + 1, deps)
         })
         .collect()
 }
@@ -349,7 +357,7 @@ fn write_description<V>(
             w.create_element("ModelStructure")
                 .write_inner_content(|w| {
                     for (tag, list) in [
-                        ("Outputs", output_dependencies(vars)),
+                        ("Outputs", output_dependencies(info, vars)),
                         ("InitialUnknowns", initial_unknown_dependencies(vars)),
                     ] {
                         if list.is_empty() {

@@ -22,7 +22,10 @@ use crate::fmi2::{
     VarType, Variability,
 };
 use crate::law::activation::{activation_step, Decay};
-use crate::law::uniaxial::Sensitivity;
+use crate::law::hill_fibre::ce_stretch;
+use crate::law::params::Range;
+use crate::law::series_element::see_stiffness;
+use crate::law::uniaxial::{cauchy_sensitivity, evaluable_stretch_range, Sensitivity};
 use crate::law::{solve_uniaxial, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS};
 
 /// Rest length of the paper's specimen [m].
@@ -133,7 +136,10 @@ pub struct Hill1D {
     initial_activation: f64,
     // Inputs and their derivatives for the next step.
     command: f64,
-    length: f64,
+    /// The length input; `None` until the importer sets it, when the length is
+    /// `L0` (the input's start value "= L0" of issue 2, also after `L0` is
+    /// changed).
+    length: Option<f64>,
     command_rate: f64,
     length_rate: f64,
     // Committed state.
@@ -145,8 +151,11 @@ pub struct Hill1D {
     /// Predictors of the next step's q and λs (the solvers' starting points
     /// only: they change the cost, not the converged result).
     predict: Predictor,
+    /// The stretches length/L0 the law can evaluate (from `b`, fixed after
+    /// initialization; derived, recomputed on restore).
+    stretch_range: (f64, f64),
     /// e^(−S h) of the last step (a cache: S is fixed, h usually repeats).
-    decay: Decay,
+    decay: Option<Decay>,
     // Outputs of the last solve and what their partials d out / d input need.
     outputs: [f64; N_OUT],
     jacobian: Jacobian,
@@ -182,11 +191,11 @@ impl Jacobian {
             Output::Force => dnom * area,
             Output::Stress => dnom,
             // σ11 = τ11 / J.
-            Output::CauchyStress => s.tau11 / self.j - self.tau11 * s.j / (self.j * self.j),
+            Output::CauchyStress => cauchy_sensitivity(self.tau11, self.j, s),
             Output::ActivationLevel => f64::from(u8::from(column == IN_ACTIVATION)),
             Output::FibreStretch => s.lambda_f,
             // λm = (1 + k) λ̄f − k λs.
-            Output::CeStretch => (1.0 + k) * s.lambda_f - k * s.lambda_s,
+            Output::CeStretch => ce_stretch(k, s.lambda_f, s.lambda_s),
             Output::SeeStretch => s.lambda_s,
             Output::ActiveStress => dsee,
             Output::PassiveStress => dnom - dsee,
@@ -288,7 +297,7 @@ impl Hill1D {
             tau11: u.tau11,
             j: u.j,
             // dσ_s/dλs = α (σ_s + β) (eq 31).
-            dsigma_see: self.params.alpha * (sigma_s + self.params.beta),
+            dsigma_see: see_stiffness(sigma_s, self.params.alpha, self.params.beta),
             ..Jacobian::default()
         };
         // Chain rule: λ = L / L0, so d/dL = (1/L0) d/dλ; d/du = (∂a/∂u) d/da.
@@ -329,6 +338,24 @@ impl Hill1D {
         self.jacobian = jacobian;
     }
 
+    /// The current length input (`L0` until set).
+    fn length(&self) -> f64 {
+        self.length.unwrap_or(self.l0)
+    }
+
+    /// Message for a length at which the law cannot be solved: names the
+    /// variables and the range of length/L0 the law can evaluate.
+    fn unsolvable(&self, length: f64, why: &str) -> String {
+        let (lo, hi) = self.stretch_range;
+        format!(
+            "length = {length} m with L0 = {} m (stretch length/L0 = {}) is outside the range the law can evaluate: \
+             keep length/L0 within [{lo:.4}, {hi:.4}] (where the matrix term c exp(b (I1bar - 3)) is finite, b = {}); solver: {why}",
+            self.l0,
+            length / self.l0,
+            self.params.b
+        )
+    }
+
     fn check_setup(&self) -> Result<(), ModelError> {
         self.params
             .validate()
@@ -336,7 +363,7 @@ impl Hill1D {
         check_positive("L0", self.l0)?;
         check_positive("area", self.area)?;
         check_unit_interval("initial_activation", self.initial_activation)?;
-        check_positive("length", self.length)?;
+        check_positive("length", self.length())?;
         Ok(())
     }
 }
@@ -367,6 +394,16 @@ fn real(unit: &'static str, start: Option<f64>, min: Option<f64>, max: Option<f6
         start,
         min,
         max,
+    }
+}
+
+/// The XML `min` of a parameter's valid range, where the range has an
+/// inclusive lower bound (`A` ≥ 0, `d` ≥ 1). Strict bounds (> 0, < 0) cannot be
+/// written as FMI min/max; they are checked when the value is set.
+fn range_min(range: Range) -> Option<f64> {
+    match range {
+        Range::AtLeast(lo) => Some(lo),
+        Range::Positive | Range::Negative => None,
     }
 }
 
@@ -443,6 +480,7 @@ impl Model for Hill1D {
             ],
             default_experiment: (0.0, 2.5, 1e-3),
             max_input_derivative_order: 1,
+            direct_feedthrough: false,
         }
     }
 
@@ -454,7 +492,7 @@ impl Model for Hill1D {
                 parameter(
                     info.name,
                     info.description,
-                    real(info.unit, Some(info.default), None, None),
+                    real(info.unit, Some(info.default), range_min(info.range), None),
                     Var::Param(info.id),
                 )
             })
@@ -505,10 +543,34 @@ impl Model for Hill1D {
             real("m", Some(DEFAULT_L0), None, None),
             Var::Length,
         ));
-        // Every output depends on both inputs and on every parameter.
-        let mut deps: Vec<&'static str> = vec!["activation", "length"];
-        deps.extend(PARAMETERS.iter().map(|i| i.name));
-        deps.extend(["L0", "area", "activation_dynamics", "initial_activation"]);
+        // Dependencies at initialization (the isometric equilibrium, f_v = 1:
+        // S, kc, ke, d and lambda_dot_min play no part). The activation level
+        // is initial_activation, or the command without dynamics; everything
+        // else also depends on the length, L0 and the static law; only the
+        // force depends on the area. Outputs have no direct feedthrough
+        // (`ModelInfo::direct_feedthrough`).
+        let activation_deps = ["activation", "activation_dynamics", "initial_activation"];
+        let static_law = [
+            ParamId::B,
+            ParamId::C,
+            ParamId::Alpha,
+            ParamId::Beta,
+            ParamId::A,
+            ParamId::Sigma0,
+            ParamId::LambdaOpt,
+            ParamId::Dcomp,
+            ParamId::K,
+        ];
+        let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
+        state_deps.extend(["length", "L0"]);
+        state_deps.extend(static_law.map(|id| Params::info(id).name));
+        let deps = |out: Output| -> Vec<&'static str> {
+            match out {
+                Output::ActivationLevel => activation_deps.to_vec(),
+                Output::Force => [state_deps.as_slice(), &["area"]].concat(),
+                _ => state_deps.clone(),
+            }
+        };
         for (out, name, description, unit) in OUTPUTS {
             v.push(ScalarVariable {
                 name,
@@ -522,7 +584,7 @@ impl Model for Hill1D {
                     min: None,
                     max: None,
                 },
-                depends_on: deps.clone(),
+                depends_on: deps(out),
                 id: Var::Out(out),
             });
         }
@@ -537,7 +599,7 @@ impl Model for Hill1D {
             activation_dynamics: true,
             initial_activation: 0.0,
             command: 0.0,
-            length: DEFAULT_L0,
+            length: None,
             command_rate: 0.0,
             length_rate: 0.0,
             activation_level: 0.0,
@@ -545,7 +607,8 @@ impl Model for Hill1D {
             lambda: 1.0,
             q: 1.0,
             predict: Predictor::default(),
-            decay: Decay::NONE,
+            decay: None,
+            stretch_range: (0.0, f64::INFINITY),
             outputs: [0.0; N_OUT],
             jacobian: Jacobian::default(),
         };
@@ -561,7 +624,7 @@ impl Model for Hill1D {
             Var::Area => self.area,
             Var::InitialActivation => self.initial_activation,
             Var::Activation => self.command,
-            Var::Length => self.length,
+            Var::Length => self.length(),
             Var::Out(o) => self.outputs[o as usize],
             Var::ActivationDynamics => f64::NAN,
         }
@@ -595,7 +658,7 @@ impl Model for Hill1D {
             }
             Var::Length => {
                 check_positive("length", value)?;
-                self.length = value;
+                self.length = Some(value);
             }
             Var::Activation => {
                 if value.is_nan() {
@@ -661,7 +724,12 @@ impl Model for Hill1D {
         } else {
             (self.command, 1.0)
         };
-        let lambda = self.length / self.l0;
+        self.stretch_range = evaluable_stretch_range(&self.params);
+        let length = self.length();
+        let lambda = length / self.l0;
+        if !(self.stretch_range.0..=self.stretch_range.1).contains(&lambda) {
+            return Err(ModelError(self.unsolvable(length, "not attempted")));
+        }
         let u = solve_uniaxial(
             &self.params,
             lambda,
@@ -670,21 +738,25 @@ impl Model for Hill1D {
             FibreRate::Isometric,
             1.0,
         )
-        .map_err(|e| ModelError(e.0))?;
+        .map_err(|e| ModelError(self.unsolvable(length, &e.0)))?;
         let (outputs, jacobian) = self.evaluate(&u, a, da_du);
+        if outputs.iter().any(|x| !x.is_finite()) {
+            return Err(ModelError(self.unsolvable(length, "a non-finite output")));
+        }
         self.commit(&u, a, None, outputs, jacobian);
         Ok(())
     }
 
     fn do_step(&mut self, _t: f64, h: f64) -> Result<(), StepError> {
-        let end_length = self.length + h * self.length_rate;
+        let end_length = self.length() + h * self.length_rate;
         if !(end_length.is_finite() && end_length > 0.0) {
             return Err(StepError::Discard(format!(
                 "length at the end of the step, length + h * der(length) = {end_length}, must be finite and > 0"
             )));
         }
-        // Updated in a copy: on a discard the model must stay unchanged.
-        let mut decay = self.decay;
+        // Kept only when the step is accepted: on a discard the model must
+        // stay unchanged.
+        let decay = Decay::for_step(self.decay, self.params.s, h);
         let (a, da_du) = if self.activation_dynamics {
             activation_step(
                 self.activation_level,
@@ -692,7 +764,7 @@ impl Model for Hill1D {
                 self.command_rate,
                 self.params.s,
                 h,
-                decay.of(self.params.s, h),
+                decay.value,
             )
         } else {
             let a = self.command + h * self.command_rate;
@@ -703,6 +775,11 @@ impl Model for Hill1D {
             }
         };
         let lambda = end_length / self.l0;
+        if !(self.stretch_range.0..=self.stretch_range.1).contains(&lambda) {
+            return Err(StepError::Discard(
+                self.unsolvable(end_length, "not attempted"),
+            ));
+        }
         let (dl, da) = (lambda - self.lambda, a - self.activation_level);
         let q_guess = Predictor::predict(&self.predict.q, self.q, dl, da, h);
         let start = FibreHistory {
@@ -719,7 +796,7 @@ impl Model for Hill1D {
             FibreRate::Step { h },
             q_guess,
         )
-        .map_err(|e| StepError::Discard(e.0))?;
+        .map_err(|e| StepError::Discard(self.unsolvable(end_length, &e.0)))?;
         let (outputs, jacobian) = self.evaluate(&u, a, da_du);
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(StepError::Discard(format!(
@@ -727,7 +804,7 @@ impl Model for Hill1D {
             )));
         }
         self.commit(&u, a, Some(h), outputs, jacobian);
-        self.decay = decay;
+        self.decay = Some(decay);
         // Input derivatives hold for one step (they describe the input at the
         // communication point they were set at).
         self.command_rate = 0.0;
@@ -765,7 +842,7 @@ impl Model for Hill1D {
             .bool(self.activation_dynamics)
             .f64(self.initial_activation)
             .f64(self.command)
-            .f64(self.length)
+            .f64s(self.length.as_slice())
             .f64(self.command_rate)
             .f64(self.length_rate)
             .f64(self.activation_level)
@@ -775,7 +852,9 @@ impl Model for Hill1D {
             .f64(self.q)
             .f64s(&self.predict.q)
             .f64s(&self.predict.lambda_s)
-            .f64s(&[self.decay.s, self.decay.h, self.decay.value])
+            // The decay cache is derived: only its step size is kept, and the
+            // value is recomputed from S on restore.
+            .f64s(self.decay.as_ref().map(|d| d.h).as_slice())
             .f64s(&self.outputs)
             .f64s(&self.jacobian.to_values());
     }
@@ -800,7 +879,11 @@ impl Model for Hill1D {
         m.activation_dynamics = r.bool()?;
         m.initial_activation = r.f64()?;
         m.command = r.f64()?;
-        m.length = r.f64()?;
+        m.length = match r.f64s()?.as_slice() {
+            [] => None,
+            &[l] => Some(l),
+            other => return Err(bad(format!("bad length {other:?}"))),
+        };
         m.command_rate = r.f64()?;
         m.length_rate = r.f64()?;
         m.activation_level = r.f64()?;
@@ -820,8 +903,11 @@ impl Model for Hill1D {
             q: three(&mut r)?,
             lambda_s: three(&mut r)?,
         };
-        let [s, h, value] = three(&mut r)?;
-        m.decay = Decay { s, h, value };
+        m.decay = match r.f64s()?.as_slice() {
+            [] => None,
+            &[h] if h.is_finite() && h > 0.0 => Some(Decay::new(m.params.s, h)),
+            other => return Err(bad(format!("bad activation decay step {other:?}"))),
+        };
         let fill = |r: &mut ByteReader, dst: &mut [f64; N_OUT]| -> Result<(), ModelError> {
             let v = r.f64s()?;
             if v.len() != N_OUT {
@@ -855,6 +941,7 @@ impl Model for Hill1D {
             return Err(bad("a non-finite value".into()));
         }
         m.check_setup().map_err(|e| bad(e.0))?;
+        m.stretch_range = evaluable_stretch_range(&m.params);
         Ok(m)
     }
 }

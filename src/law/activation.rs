@@ -27,9 +27,9 @@ pub fn activation_step(a0: f64, u0: f64, u_dot: f64, s: f64, h: f64, decay: f64)
     }
 }
 
-/// The decay factor e^(−S h) of [`activation_step`], kept for the last (S, h):
-/// a co-simulation usually repeats its step size, so the exponential is
-/// evaluated once instead of every step.
+/// The decay factor e^(−S h) of [`activation_step`] for one (S, h). A model
+/// keeps the last one: a co-simulation usually repeats its step size, so the
+/// exponential is evaluated once instead of every step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Decay {
     pub s: f64,
@@ -38,23 +38,21 @@ pub struct Decay {
 }
 
 impl Decay {
-    /// No step seen yet.
-    pub const NONE: Decay = Decay {
-        s: f64::NAN,
-        h: f64::NAN,
-        value: f64::NAN,
-    };
-
-    /// e^(−S h), recomputed only when S or h changed.
-    pub fn of(&mut self, s: f64, h: f64) -> f64 {
-        if s != self.s || h != self.h {
-            *self = Decay {
-                s,
-                h,
-                value: (-s * h).exp(),
-            };
+    /// e^(−S h).
+    pub fn new(s: f64, h: f64) -> Decay {
+        Decay {
+            s,
+            h,
+            value: (-s * h).exp(),
         }
-        self.value
+    }
+
+    /// `cached` when it is for (S, h), else a new one.
+    pub fn for_step(cached: Option<Decay>, s: f64, h: f64) -> Decay {
+        match cached {
+            Some(d) if d.s == s && d.h == h => d,
+            _ => Decay::new(s, h),
+        }
     }
 }
 
@@ -97,11 +95,19 @@ mod tests {
     }
 
     #[test]
-    fn decay_is_cached_per_step_size() {
-        let mut d = Decay::NONE;
-        assert_eq!(d.of(50.0, 1e-3), (-50.0f64 * 1e-3).exp());
-        assert_eq!(d.of(50.0, 2e-3), (-50.0f64 * 2e-3).exp());
-        assert_eq!(d.of(60.0, 2e-3), (-60.0f64 * 2e-3).exp());
+    fn decay_is_reused_only_for_the_same_step() {
+        let d = Decay::new(50.0, 1e-3);
+        assert_eq!(d.value, f64::exp(-50.0 * 1e-3));
+        assert_eq!(Decay::for_step(Some(d), 50.0, 1e-3), d);
+        assert_eq!(
+            Decay::for_step(Some(d), 50.0, 2e-3).value,
+            f64::exp(-50.0 * 2e-3)
+        );
+        assert_eq!(
+            Decay::for_step(Some(d), 60.0, 1e-3).value,
+            f64::exp(-60.0 * 1e-3)
+        );
+        assert_eq!(Decay::for_step(None, 50.0, 1e-3), d);
     }
 
     #[test]

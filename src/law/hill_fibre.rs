@@ -20,13 +20,20 @@ use super::force_velocity::{force_velocity, force_velocity_branch, force_velocit
 use super::parallel_element::pe_stress;
 use super::params::Params;
 use super::root_finding::{safeguarded_newton, RootError};
-use super::series_element::{see_stress, see_stretch_for_stress};
+use super::series_element::{see_stiffness, see_stress, see_stretch_for_stress};
 
 /// History of one fibre at the start of a step: the SEE and CE stretches.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FibreHistory {
     pub lambda_s: f64,
     pub lambda_m: f64,
+}
+
+/// Series kinematics (MODEL_NOTES "Hill fibre"): the CE stretch
+/// λm = (1 + k) λ̄f − k λs.
+#[inline]
+pub fn ce_stretch(k: f64, lambda_f: f64, lambda_s: f64) -> f64 {
+    (1.0 + k) * lambda_f - k * lambda_s
 }
 
 impl FibreHistory {
@@ -84,7 +91,7 @@ impl FibreResponse {
             return *self;
         }
         let dls = self.dls_dlambda * dlambda_f;
-        let dsigma_see = p.alpha * (self.sigma_see + p.beta) * dls;
+        let dsigma_see = see_stiffness(self.sigma_see, p.alpha, p.beta) * dls;
         let dlm = (1.0 + p.k) * dlambda_f - p.k * dls;
         FibreResponse {
             w: self.w + self.dw_dlambda * dlambda_f,
@@ -128,7 +135,7 @@ pub fn fibre_response(
             let sol = SeeSolution {
                 lambda_s: see_stretch_for_stress(sigma, p.alpha, p.beta),
                 sigma,
-                dsigma: p.alpha * (sigma + p.beta),
+                dsigma: see_stiffness(sigma, p.alpha, p.beta),
                 fv: 1.0,
                 dfv: 0.0,
                 iterations: 0,
@@ -144,7 +151,7 @@ pub fn fibre_response(
             let r_ls = sol.dsigma + drive * sol.dfv * p.k / h;
             let r_lf = -p.sigma0 * activation * df_l * sol.fv - drive * sol.dfv * (1.0 + p.k) / h;
             let r_a = -p.sigma0 * f_l * sol.fv;
-            let rate = ((1.0 + p.k) * lambda_f - p.k * sol.lambda_s - hist.lambda_m) / h;
+            let rate = (ce_stretch(p.k, lambda_f, sol.lambda_s) - hist.lambda_m) / h;
             (sol, rate, -r_lf / r_ls, -r_a / r_ls)
         }
     };
@@ -158,7 +165,7 @@ pub fn fibre_response(
         sigma_pe,
         history: FibreHistory {
             lambda_s: sol.lambda_s,
-            lambda_m: (1.0 + p.k) * lambda_f - p.k * sol.lambda_s,
+            lambda_m: ce_stretch(p.k, lambda_f, sol.lambda_s),
         },
         lambda_dot_m,
         iterations: sol.iterations,
@@ -179,12 +186,14 @@ struct SeeSolution {
 }
 
 /// The CE–SEE step solve: the root of R(λs) = σ_s(λs) − drive · f_v(λ̇m(λs))
-/// in [1, λs_max] with drive = σ0 a f_λ (MODEL_NOTES "Hill fibre"), by the
-/// safeguarded Newton iteration. The curve values come from the iteration's
-/// last evaluation, moved to first order by the accepted correction δ
-/// (|δ| ≤ 1e-12, so the error is O(δ²)), which saves re-evaluating them.
+/// in [1, λs_max] with drive = σ0 a f_λ (MODEL_NOTES "Hill fibre"). Newton's
+/// method from the warm start first; the bracketed safeguarded iteration when
+/// that does not settle. The last Newton correction δ is applied to first
+/// order together with the curve values of the last evaluation, once its
+/// estimated error C δ² is below 1e-15 (fast path, |δ| ≤ 1e-6) or |δ| ≤ 1e-12
+/// (bracketed path), which saves re-evaluating them.
 fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64) -> SeeSolution {
-    let ce_rate = |ls: f64| ((1.0 + p.k) * lambda_f - p.k * ls - hist.lambda_m) / h;
+    let ce_rate = |ls: f64| (ce_stretch(p.k, lambda_f, ls) - hist.lambda_m) / h;
     let evaluate = |ls: f64| {
         let (sigma, dsigma) = see_stress(ls, p.alpha, p.beta);
         let (fv, dfv) = force_velocity(ce_rate(ls), p.lambda_dot_min, p.kc, p.ke, p.d);
@@ -229,14 +238,16 @@ fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64
         // Applying the correction δ to first order leaves an error of about
         // C δ² with C = |R''| / (2 R'), R'' = α σ_s' − drive f_v'' (k/h)²
         // (σ_s'' = α σ_s', eq 31), valid while x and x − δ lie on the same
-        // smooth piece of f_v. Accept when that is below 1e-15 (δ ≤ 1e-6).
+        // smooth piece of f_v. The two terms of R'' can cancel, so C is bounded
+        // by their absolute values (which also bounds the first-order errors
+        // of σ_s and f_v moved in `accept`). Accept when C δ² ≤ 1e-15.
         if step.abs() <= 1e-6 && next > 1.0 {
             let rate = ce_rate(x);
             let same_piece = force_velocity_branch(rate, p.lambda_dot_min)
                 == force_velocity_branch(ce_rate(next), p.lambda_dot_min);
             let curvature = force_velocity_curvature(rate, p.lambda_dot_min, p.kc, p.ke, p.d);
-            let r2 = p.alpha * e.dsigma - drive * curvature * k_over_h * k_over_h;
-            if same_piece && r2.abs() / (2.0 * dr) * step * step <= 1e-15 {
+            let r2 = p.alpha * e.dsigma.abs() + drive * curvature.abs() * k_over_h * k_over_h;
+            if same_piece && r2 / (2.0 * dr) * step * step <= 1e-15 {
                 return accept(e, next, iteration, k_over_h);
             }
         }
@@ -261,6 +272,8 @@ fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64
         Err(RootError::NotBracketed { lo, hi, f_lo, f_hi }) => {
             (if f_lo.abs() < f_hi.abs() { lo } else { hi }, 200)
         }
+        // Not expected (the bracket halves at least every second iteration).
+        Err(RootError::NoConvergence { lo, hi }) => (0.5 * (lo + hi), 200),
     };
     // At λs = 1 (the CE-free edge) evaluate afresh so that σ_s is exactly 0;
     // likewise when the iteration ended by bisection.
@@ -274,7 +287,8 @@ fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64
     }
 }
 
-/// The solution at `ls` from the evaluation `e` at a point within 1e-10 of it:
+/// The solution at `ls` from the evaluation `e` at a nearby point (one
+/// accepted Newton correction away):
 /// σ_s and f_v moved to first order (dλ̇m/dλs = −k/h = −`k_over_h`).
 fn accept(e: SeeSolution, ls: f64, iterations: u32, k_over_h: f64) -> SeeSolution {
     let delta = ls - e.lambda_s;

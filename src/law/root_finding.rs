@@ -1,6 +1,6 @@
 //! Safeguarded Newton iteration for increasing scalar functions with a bracket.
 
-/// Why a bracketed solve could not start.
+/// Why a bracketed solve failed.
 #[derive(Clone, Debug, PartialEq)]
 pub enum RootError {
     /// f(lo) > 0 or f(hi) < 0, or a non-finite value.
@@ -10,6 +10,9 @@ pub enum RootError {
         f_lo: f64,
         f_hi: f64,
     },
+    /// The iteration cap was reached (not expected with a valid bracket: the
+    /// bracket at least halves every second iteration).
+    NoConvergence { lo: f64, hi: f64 },
 }
 
 /// A converged root.
@@ -22,11 +25,12 @@ pub struct Root {
 }
 
 /// Root of a non-decreasing `f` (returning value and derivative) in `[lo, hi]`
-/// with f(lo) ≤ 0 ≤ f(hi), starting from `x0`. Newton steps are taken while
-/// they stay strictly inside the current bracket and the derivative is
-/// positive; otherwise the bracket is bisected. Every evaluation shrinks the
-/// bracket, so the iteration converges for any input (at worst like
-/// bisection). Converged when the Newton correction is below `xtol` (the
+/// with f(lo) ≤ 0 ≤ f(hi), starting from `x0`. A Newton step is taken when
+/// it stays strictly inside the current bracket, the derivative is positive
+/// and finite, and it is at most half the step before last (the progress test
+/// of the classic "rtsafe"); otherwise the bracket is bisected. So the bracket
+/// at least halves every second iteration and the iteration converges for any
+/// input (at worst like bisection), at Newton's rate near the root. Converged when the Newton correction is below `xtol` (the
 /// correction is applied, leaving an error of O(xtol²)), or f(x) = 0, or the
 /// bracket is narrower than `xtol`.
 /// Used by the CE–SEE solve (MODEL_NOTES "Hill fibre": "a safeguarded
@@ -47,6 +51,8 @@ where
         0.5 * (lo + hi)
     };
     let mut iterations = 0u32;
+    // The last two steps, for the progress test.
+    let (mut dx, mut dx_old) = (hi - lo, hi - lo);
     let mut checked_lo = false;
     let mut checked_hi = false;
     // 200 iterations: a bisection halves ~1 to below 1e-16 within 60, so the
@@ -87,7 +93,11 @@ where
                 iterations,
             });
         }
-        let step_ok = dr > 0.0 && dr.is_finite() && newton > lo && newton < hi;
+        let step_ok = dr > 0.0
+            && dr.is_finite()
+            && newton > lo
+            && newton < hi
+            && (2.0 * step).abs() <= dx_old.abs();
         if hi - lo <= xtol {
             // The bracket is resolved; confirm it really brackets a root.
             if !checked_lo || !checked_hi {
@@ -103,11 +113,16 @@ where
                 iterations,
             });
         }
-        x = if step_ok { newton } else { 0.5 * (lo + hi) };
+        dx_old = dx;
+        if step_ok {
+            dx = step;
+            x = newton;
+        } else {
+            dx = 0.5 * (hi - lo);
+            x = lo + dx;
+        }
     }
-    let (f_lo, _) = f(lo);
-    let (f_hi, _) = f(hi);
-    Err(RootError::NotBracketed { lo, hi, f_lo, f_hi })
+    Err(RootError::NoConvergence { lo, hi })
 }
 
 #[cfg(test)]
@@ -149,6 +164,17 @@ mod tests {
         let f = |x: f64| (x - 0.25, if x > 0.9 { f64::INFINITY } else { 1.0 });
         let r = safeguarded_newton(f, 0.0, 1.0, 0.95, 1e-12).unwrap();
         assert!((r.x - 0.25).abs() < 1e-12, "{}", r.x);
+    }
+
+    #[test]
+    fn slow_newton_progress_falls_back_to_bisection() {
+        // Steep exponential, started high in a valid bracket: Newton creeps
+        // down by ~1/α per step (≈ 700 steps from x = 69); the progress test
+        // must bisect instead.
+        let f = |x: f64| ((10.0 * x).exp() - 2.0, 10.0 * (10.0 * x).exp());
+        let r = safeguarded_newton(f, 0.0, 70.0, 69.0, 1e-14).unwrap();
+        assert!((r.x - 2f64.ln() / 10.0).abs() < 1e-13, "{}", r.x);
+        assert!(r.iterations < 100, "{} iterations", r.iterations);
     }
 
     #[test]

@@ -8,6 +8,12 @@ pub fn see_stress(lambda_s: f64, alpha: f64, beta: f64) -> (f64, f64) {
     (beta * (e - 1.0), alpha * beta * e)
 }
 
+/// SEE stiffness from its stress, dσ_s/dλs = α (σ_s + β) (eq 31).
+#[inline]
+pub fn see_stiffness(sigma: f64, alpha: f64, beta: f64) -> f64 {
+    alpha * (sigma + beta)
+}
+
 /// Inverse of [`see_stress`]: the SEE stretch carrying nominal stress σ ≥ 0,
 /// λs = 1 + ln(1 + σ/β)/α.
 #[inline]
@@ -32,6 +38,6 @@ mod tests {
         assert!((fd / see_stress(l, 10.0, 1e3).1 - 1.0).abs() < 1e-7);
         // eq 31: dσ/dλ = α (σ + β)
         let (s, ds) = see_stress(l, 10.0, 1e3);
-        assert!((ds - 10.0 * (s + 1e3)).abs() < 1e-9 * ds);
+        assert!((ds - see_stiffness(s, 10.0, 1e3)).abs() < 1e-9 * ds);
     }
 }

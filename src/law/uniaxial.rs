@@ -33,6 +33,7 @@ use super::hill_fibre::{fibre_response, FibreHistory, FibreRate, FibreResponse};
 use super::isotropic_matrix::matrix_derivatives;
 use super::params::Params;
 use super::root_finding::safeguarded_newton;
+use super::volumetric::volumetric_derivatives;
 
 /// The uniaxial state at the end of a step.
 #[derive(Clone, Debug)]
@@ -98,13 +99,41 @@ impl Uniaxial {
 
     /// Total derivative of σ11 = τ11 / J along `s`.
     pub fn dcauchy(&self, s: &Sensitivity) -> f64 {
-        s.tau11 / self.j - self.tau11 * s.j / (self.j * self.j)
+        cauchy_sensitivity(self.tau11, self.j, s)
     }
 
     /// The deformation gradient F = diag(λ, μ, μ).
     pub fn deformation_gradient(&self) -> nalgebra::Matrix3<f64> {
         nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(self.lambda, self.mu, self.mu))
     }
+}
+
+/// The axial stretches at which the law can be evaluated in uniaxial stress:
+/// where the matrix term c exp(b (Ī1 − 3)) stays below c e^700 (finite in
+/// binary64 with margin). With Ī1 = λ² + 2/λ (the incompressible value) the
+/// bounds solve b (λ² + 2/λ − 3) = 700 below and above λ = 1 (bisection).
+/// For b = 23.46: about [0.0613, 5.69]. A guide for messages: beyond it the
+/// compressible solve may fail or return a state far from J = 1.
+pub fn evaluable_stretch_range(p: &Params) -> (f64, f64) {
+    let excess = |l: f64| p.b * (l * l + 2.0 / l - 3.0) - 700.0;
+    let bisect = |mut inside: f64, mut outside: f64| {
+        for _ in 0..100 {
+            let mid = 0.5 * (inside + outside);
+            if excess(mid) < 0.0 {
+                inside = mid;
+            } else {
+                outside = mid;
+            }
+        }
+        inside
+    };
+    (bisect(1.0, 1e-6), bisect(1.0, 1e3))
+}
+
+/// dσ11 along a sensitivity `s`, for σ11 = τ11 / J:
+/// dσ11 = dτ11 / J − τ11 dJ / J².
+pub fn cauchy_sensitivity(tau11: f64, j: f64, s: &Sensitivity) -> f64 {
+    s.tau11 / j - tau11 * s.j / (j * j)
 }
 
 /// The law at (λ, q): T_d, the lateral residual g and their partial derivatives.
@@ -141,8 +170,9 @@ fn evaluate(
     let (w, dw) = (fibre.w, fibre.dw_dlambda);
     let t_d = 2.0 * u1 * delta + lambda_f * w;
     let j = q * q * q;
-    let p_hat = 2.0 * j * (j - 1.0) / p.d_comp;
-    let dp_hat_dj = 2.0 * (2.0 * j - 1.0) / p.d_comp;
+    let (uj, ujj) = volumetric_derivatives(j, p.d_comp);
+    let p_hat = j * uj; // p̂ = J U_J'
+    let dp_hat_dj = uj + j * ujj;
     // d/dq: dλ̄f = −λ̄f/q, dμ̄² = 1/λ, so dĪ1 = −2λ̄f²/q + 2/λ, dΔ = −2λ̄f²/q − 1/λ.
     let fibre_term = w + lambda_f * dw; // d(λ̄f W)/dλ̄f
     let (di1_dq, ddelta_dq) = (
@@ -205,12 +235,25 @@ pub fn solve_uniaxial(
             break;
         }
         if step.abs() <= 1e-9 {
-            return Ok(finish(p, lambda, q, -step, e, iterations));
+            return finite(finish(p, lambda, q, -step, e, iterations));
         }
         guess.lambda_s = e.fibre.history.lambda_s;
         q -= step.clamp(-0.2 * q, 0.2 * q);
     }
     bracketed(p, lambda, activation, hist, rate)
+}
+
+/// A solved state, unless its stress is not finite (the law overflows at this
+/// stretch): never a NaN passed off as a solution.
+fn finite(u: Uniaxial) -> Result<Uniaxial, UniaxialError> {
+    if u.tau11.is_finite() && u.j.is_finite() && u.fibre.w.is_finite() {
+        Ok(u)
+    } else {
+        Err(UniaxialError(format!(
+            "the stress of the law is not finite at axial stretch {}",
+            u.lambda
+        )))
+    }
 }
 
 /// Fallback: bracket the root of g(q) (increasing in q near J = 1) and solve
@@ -259,7 +302,7 @@ fn bracketed(
             "lateral equilibrium at axial stretch {lambda}: {e:?}"
         ))
     })?;
-    Ok(finish(
+    finite(finish(
         p,
         lambda,
         root.x,
@@ -619,6 +662,53 @@ mod tests {
                 checked += 1;
             }
             assert!(checked >= 400);
+        }
+    }
+
+    #[test]
+    fn a_non_finite_state_is_an_error_not_a_solution() {
+        // At the edge of the evaluable range the matrix term overflows; the
+        // solve used to return Ok with τ11 = NaN there.
+        let p = Params::default();
+        let (lo, _) = evaluable_stretch_range(&p);
+        for lambda in [lo, 0.0613] {
+            match solve_uniaxial(
+                &p,
+                lambda,
+                0.0,
+                &FibreHistory::REST,
+                FibreRate::Isometric,
+                1.0,
+            ) {
+                Ok(u) => assert!(
+                    u.tau11.is_finite() && u.j.is_finite(),
+                    "λ = {lambda}: {}",
+                    u.tau11
+                ),
+                Err(e) => assert!(e.0.contains("stretch"), "{}", e.0),
+            }
+        }
+    }
+
+    #[test]
+    fn evaluable_range_bounds_where_the_law_is_finite() {
+        let p = Params::default();
+        let (lo, hi) = evaluable_stretch_range(&p);
+        assert!(
+            (lo - 0.0613).abs() < 1e-3 && (hi - 5.69).abs() < 1e-2,
+            "[{lo}, {hi}]"
+        );
+        for lambda in [lo * 1.05, 0.5, 2.0, hi * 0.95] {
+            let u = solve_uniaxial(
+                &p,
+                lambda,
+                0.0,
+                &FibreHistory::REST,
+                FibreRate::Isometric,
+                1.0,
+            )
+            .unwrap();
+            assert!(u.tau11.is_finite(), "λ = {lambda}");
         }
     }
 

@@ -15,7 +15,7 @@ from ctypes import c_double, c_uint32
 
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import fmi2Error, fmi2OK, fmi2Warning
+from fmpy.fmi2 import fmi2Discard, fmi2Error, fmi2False, fmi2OK, fmi2Warning
 
 H = 1e-3
 
@@ -57,6 +57,18 @@ def names_variable_and_range(msg, name):
     named = re.search(rf"(?<![\w.]){re.escape(name)}(?![\w])", msg)
     ranged = re.search(r"must be|range|\[0, 1\]", msg)
     return bool(named and ranged)
+
+
+def names_word(msg, name):
+    return re.search(rf"(?<![\w.]){re.escape(name)}(?![\w])", msg) is not None
+
+
+def names_length_L0_and_stretch_range(msg):
+    """The message names `length` and `L0` and states the valid range of the
+    stretch length/L0 ("stretch ... range / must be / between ...")."""
+    return bool(names_word(msg, "length") and names_word(msg, "L0")
+                and re.search(r"stretch|length\s*/\s*L0", msg)
+                and re.search(r"must be|range|between|[\[(]\s*[-+0-9.eE]+\s*,\s*[-+0-9.eE]+\s*[\])]", msg))
 
 
 def assert_continues_like_twin(a, b, n=30, start=60):
@@ -120,6 +132,61 @@ def test_rejected_pair_set_changes_nothing(muscle):
     with pytest.raises(FMICallException):
         a.slave.setReal([a.vr["activation"], a.vr["length"]], [0.1, math.nan])
     assert a.get("activation") == u_before
+    assert_continues_like_twin(a, b)
+
+
+# A length the law cannot evaluate: finite and positive (so the set itself is
+# legal) but length/L0 far outside the physical range of the stretch.
+UNEVALUABLE_LENGTHS = [5.0, 1e-4]  # with the default L0 = 0.05: stretch 100 and 0.002
+
+
+@pytest.mark.parametrize("bad", UNEVALUABLE_LENGTHS)
+def test_unevaluable_length_fails_exit_initialization(muscle, bad):
+    """length = 5.0 m (or 1e-4 m) with L0 = 0.05 m set in initialization mode:
+    fmi2ExitInitializationMode returns fmi2Error (fmpy raises) and logs a
+    message naming `length` and `L0` with the valid stretch range. The
+    instance stays in initialization mode: after setting length = 0.05 the
+    exit succeeds, and the instance then has the outputs of, and steps
+    exactly like, one initialized at 0.05 from the start."""
+    a = muscle(log=[], initialize=False)
+    a.slave.setupExperiment(startTime=0.0)
+    a.slave.enterInitializationMode()
+    a.slave.setReal([a.vr["length"], a.vr["activation"]], [bad, 0.0])  # legal: finite, positive
+    with pytest.raises(FMICallException) as exc:
+        a.slave.exitInitializationMode()
+    assert exc.value.status == fmi2Error
+    assert any(names_length_L0_and_stretch_range(msg) for msg in messages(a, fmi2Error)), a.log
+    a.slave.setReal([a.vr["length"]], [0.05])
+    a.slave.exitInitializationMode()  # raises if the instance had left initialization mode
+    a.time = a.start_time = 0.0
+    b = muscle(length=0.05)
+    assert a.get("length") == [0.05]
+    assert a.output_vector() == b.output_vector()
+    drive(a, 30)
+    drive(b, 30)
+    assert a.output_vector() == b.output_vector()
+
+
+@pytest.mark.parametrize("bad", UNEVALUABLE_LENGTHS)
+def test_unevaluable_length_in_step_mode_discards_and_state_restores(muscle, bad):
+    """In step mode (after 60 steps): setting length = 5.0 m (or 1e-4 m) is
+    accepted (not an error), the following doStep returns fmi2Discard (fmpy
+    raises with that status) and logs a message naming `length`. Restoring
+    the FMU state saved before the set (setFMUstate) gives back the twin's
+    outputs and inputs, and the instance then continues exactly like the
+    twin that never saw the bad length."""
+    a, b = twins(muscle)
+    state = a.slave.getFMUstate()
+    assert set_real_status(a, "length", bad) in (fmi2OK, fmi2Warning)
+    n_log = len(a.log)
+    with pytest.raises(FMICallException) as exc:
+        a.slave.doStep(a.time, H, noSetFMUStatePriorToCurrentPoint=fmi2False)
+    assert exc.value.status == fmi2Discard
+    assert any(names_word(msg, "length") for _, _, msg in a.log[n_log:]), a.log
+    a.slave.setFMUstate(state)
+    a.slave.freeFMUstate(state)
+    assert a.output_vector() == b.output_vector()
+    assert a.get("length", "activation") == b.get("length", "activation")
     assert_continues_like_twin(a, b)
 
 

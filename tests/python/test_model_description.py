@@ -36,6 +36,14 @@ OUTPUTS = {
     "active_stress": "Pa",
     "passive_stress": "Pa",
 }
+# ModelStructure/InitialUnknowns: what each output depends on at initialization
+# (the isometric equilibrium). The rate parameters S, kc, ke, d, lambda_dot_min
+# do not affect the isometric start.
+_FORCE_DEPENDENCIES = {"activation", "length", "b", "c", "alpha", "beta", "A", "sigma0", "lambda_opt", "D",
+                       "k", "L0", "area", "activation_dynamics", "initial_activation"}
+INITIAL_DEPENDENCIES = {name: _FORCE_DEPENDENCIES - {"area"} for name in OUTPUTS}
+INITIAL_DEPENDENCIES["force"] = _FORCE_DEPENDENCIES
+INITIAL_DEPENDENCIES["activation_level"] = {"activation", "activation_dynamics", "initial_activation"}
 # Units whose dimension is fixed by physics (fmpy reads BaseUnit exponents).
 UNIT_DIMENSIONS = {"m": {"m": 1}, "N": {"kg": 1, "m": 1, "s": -2}, "Pa": {"kg": 1, "m": -1, "s": -2},
                    "1/s": {"s": -1}, "1/Pa": {"kg": -1, "m": 1, "s": 2}, "m2": {"m": 2}}
@@ -95,18 +103,58 @@ def test_inputs(loaded, name):
 
 @pytest.mark.parametrize("name", sorted(OUTPUTS))
 def test_outputs(loaded, name):
-    """The nine continuous Real outputs, their units, and that each is listed
-    in ModelStructure/Outputs depending on both inputs."""
+    """The nine continuous Real outputs and their units."""
     v = loaded.variables[name]
     assert (v.type, v.causality, v.variability) == ("Real", "output", "continuous")
     assert v.unit == OUTPUTS[name]
+
+
+def dependency_names(unknown):
+    """Names of an Unknown's dependencies; None when the attribute is absent
+    (which in FMI 2.0 means "depends on everything", not "on nothing")."""
+    if unknown.dependencies is None:
+        return None
+    return sorted(d.name for d in unknown.dependencies)
+
+
+def test_model_structure_outputs_list_each_output_once(loaded):
+    """ModelStructure/Outputs lists exactly the nine outputs, once each, in
+    the order of the model variables (FMI 2.0 requires that order)."""
     md = loaded.model_description
-    unknowns = {u.variable.name: u for u in md.outputs}
+    names = [u.variable.name for u in md.outputs]
+    assert sorted(names) == sorted(OUTPUTS)
+    order = [v.name for v in md.modelVariables if v.causality == "output"]
+    assert names == order
+
+
+@pytest.mark.parametrize("name", sorted(OUTPUTS))
+def test_outputs_have_no_direct_feedthrough(loaded, name):
+    """Each output's Outputs/Unknown carries dependencies="" (present and
+    empty): an input set at a communication point changes no output until
+    the next doStep. An absent attribute would mean the opposite (depends on
+    everything), so it must be there."""
+    unknowns = {u.variable.name: u for u in loaded.model_description.outputs}
     assert name in unknowns
-    deps = unknowns[name].dependencies
-    if deps is not None:  # absent dependencies mean "depends on everything"
-        dep_names = {d.name for d in deps}
-        assert {"activation", "length"} <= dep_names
+    deps = dependency_names(unknowns[name])
+    assert deps is not None, f"{name}: dependencies attribute absent in <Outputs>"
+    assert deps == []
+    assert not unknowns[name].dependenciesKind  # absent or empty with no dependencies
+
+
+@pytest.mark.parametrize("name", sorted(OUTPUTS))
+def test_initial_unknowns_dependencies(loaded, name):
+    """InitialUnknowns lists every output with exactly what it depends on at
+    initialization (the isometric equilibrium): the passive/active law and
+    geometry parameters and both inputs, but not the rate parameters (S, kc,
+    ke, d, lambda_dot_min), which do not affect the isometric start; only
+    `force` depends on `area`; `activation_level` only on the activation."""
+    md = loaded.model_description
+    unknowns = {u.variable.name: u for u in md.initialUnknowns}
+    assert sorted(unknowns) == sorted(OUTPUTS)
+    deps = dependency_names(unknowns[name])
+    assert deps is not None, f"{name}: dependencies attribute absent in <InitialUnknowns>"
+    assert deps == sorted(INITIAL_DEPENDENCIES[name])
+    assert len(deps) == len(unknowns[name].dependencies)  # no duplicates
 
 
 def test_no_unexpected_variables(loaded):
