@@ -235,25 +235,12 @@ pub fn solve_uniaxial(
             break;
         }
         if step.abs() <= 1e-9 {
-            return finite(finish(p, lambda, q, -step, e, iterations));
+            return finish(p, lambda, q, -step, e, iterations);
         }
         guess.lambda_s = e.fibre.history.lambda_s;
         q -= step.clamp(-0.2 * q, 0.2 * q);
     }
     bracketed(p, lambda, activation, hist, rate)
-}
-
-/// A solved state, unless its stress is not finite (the law overflows at this
-/// stretch): never a NaN passed off as a solution.
-fn finite(u: Uniaxial) -> Result<Uniaxial, UniaxialError> {
-    if u.tau11.is_finite() && u.j.is_finite() && u.fibre.w.is_finite() {
-        Ok(u)
-    } else {
-        Err(UniaxialError(format!(
-            "the stress of the law is not finite at axial stretch {}",
-            u.lambda
-        )))
-    }
 }
 
 /// Fallback: bracket the root of g(q) (increasing in q near J = 1) and solve
@@ -302,26 +289,33 @@ fn bracketed(
             "lateral equilibrium at axial stretch {lambda}: {e:?}"
         ))
     })?;
-    finite(finish(
-        p,
-        lambda,
-        root.x,
-        0.0,
-        g(root.x),
-        100 + root.iterations,
-    ))
+    finish(p, lambda, root.x, 0.0, g(root.x), 100 + root.iterations)
 }
 
 /// The state at q + dq from the evaluation `e` at q (dq is Newton's last
 /// correction, ≤ 1e-9, applied to first order), with total derivatives by the
 /// implicit function theorem on g(λ, q, a) = 0 (module docs).
-fn finish(p: &Params, lambda: f64, q0: f64, dq: f64, e: Evaluation, iterations: u32) -> Uniaxial {
+#[inline]
+fn finish(
+    p: &Params,
+    lambda: f64,
+    q0: f64,
+    dq: f64,
+    e: Evaluation,
+    iterations: u32,
+) -> Result<Uniaxial, UniaxialError> {
     let q = q0 + dq;
     let lambda_f = lambda / q;
     let fibre = e.fibre.moved_to(p, lambda_f - e.lambda_f);
     // τ11 = T_d where g = 0.
     let tau11 = e.t_d + e.dtd_dq * dq;
     let j = q * q * q;
+    // Never a NaN passed off as a solution (the law overflows at this stretch).
+    if !(tau11.is_finite() && j.is_finite() && fibre.w.is_finite()) {
+        return Err(UniaxialError(format!(
+            "the stress of the law is not finite at axial stretch {lambda}"
+        )));
+    }
     let mu = (j / lambda).sqrt();
     let sensitivity = |dq: f64, dtd: f64, dlambda: f64, dls_direct: f64| {
         let dlf = dlambda / q - lambda_f * dq / q;
@@ -338,7 +332,7 @@ fn finish(p: &Params, lambda: f64, q0: f64, dq: f64, e: Evaluation, iterations: 
     // g = p̂(q³) − T_d/3 = 0  ⇒  dq = (∂T_d/3) / g_q along each driver.
     let dq_dl = e.dtd_dlambda / 3.0 / e.dg_dq;
     let dq_da = e.dtd_da / 3.0 / e.dg_dq;
-    Uniaxial {
+    Ok(Uniaxial {
         lambda,
         q,
         j,
@@ -349,7 +343,7 @@ fn finish(p: &Params, lambda: f64, q0: f64, dq: f64, e: Evaluation, iterations: 
         d_dactivation: sensitivity(dq_da, e.dtd_da, 0.0, fibre.dls_dactivation),
         fibre,
         iterations,
-    }
+    })
 }
 
 #[cfg(test)]
