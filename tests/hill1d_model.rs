@@ -278,6 +278,36 @@ fn a_length_the_law_cannot_evaluate_is_named_in_the_error() {
 }
 
 #[test]
+fn an_overflowing_volume_change_is_discarded_with_its_cause() {
+    // D = 1e-4 (bulk modulus 2e4 Pa) against ~1e6 Pa of active stress, the
+    // length jumping 0.6 <-> 1.6 every microsecond: the volume change grows
+    // until the matrix term overflows. Found by a sweep of issue 4's grid.
+    let mut m = Hill1D::new();
+    m.set_real(Var::Param(ParamId::Dcomp), 1e-4).unwrap();
+    m.set_real(Var::Param(ParamId::S), 1e5).unwrap();
+    m.initialize().unwrap();
+    m.set_real(Var::Activation, 1.0).unwrap();
+    for i in 0..20_000 {
+        m.set_real(Var::Length, DEFAULT_L0 * if i % 2 == 0 { 0.6 } else { 1.6 })
+            .unwrap();
+        let before = m.clone();
+        match m.do_step(i as f64 * 1e-6, 1e-6) {
+            Ok(()) => assert!(out(&m, Output::Force).is_finite()),
+            Err(StepError::Discard(msg)) => {
+                assert!(
+                    msg.contains("volume change") && msg.contains("D = 0.0001"),
+                    "{msg}"
+                );
+                assert_eq!(m, before, "a discarded step changes nothing");
+                return;
+            }
+            Err(e) => panic!("{e:?}"),
+        }
+    }
+    panic!("expected the law to overflow within 20,000 steps");
+}
+
+#[test]
 fn bad_input_is_rejected_and_changes_nothing() {
     let mut m = initialized();
     m.set_real(Var::Activation, 0.5).unwrap();

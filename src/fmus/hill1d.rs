@@ -365,13 +365,24 @@ impl Hill1D {
     /// variables and the range of length/L0 the law can evaluate.
     fn unsolvable(&self, length: f64, why: &str) -> String {
         let (lo, hi) = self.stretch_range;
-        format!(
-            "length = {length} m with L0 = {} m (stretch length/L0 = {}) is outside the range the law can evaluate: \
-             keep length/L0 within [{lo:.4}, {hi:.4}] (where the matrix term c exp(b (I1bar - 3)) is finite, b = {}); solver: {why}",
-            self.l0,
-            length / self.l0,
-            self.params.b
-        )
+        let lambda = length / self.l0;
+        if (lo..=hi).contains(&lambda) {
+            // The stretch is evaluable at J = 1: the volume change is what
+            // overflows the law (a soft volumetric term, large D).
+            format!(
+                "no finite equilibrium at length = {length} m (length/L0 = {lambda}): the volume change \
+                 the law allows with D = {} 1/Pa grows until its matrix term c exp(b (I1bar - 3)) overflows; \
+                 a smaller D (stiffer volumetric term) keeps J near 1; solver: {why}",
+                self.params.d_comp
+            )
+        } else {
+            format!(
+                "length = {length} m with L0 = {} m (stretch length/L0 = {lambda}) is outside the range the law \
+                 can evaluate: keep length/L0 within [{lo:.4}, {hi:.4}] (where the matrix term \
+                 c exp(b (I1bar - 3)) is finite, b = {}); solver: {why}",
+                self.l0, self.params.b
+            )
+        }
     }
 
     fn check_setup(&self) -> Result<(), ModelError> {

@@ -95,7 +95,9 @@ impl FibreResponse {
         let dlm = (1.0 + p.k) * dlambda_f - p.k * dls;
         FibreResponse {
             w: self.w + self.dw_dlambda * dlambda_f,
-            sigma_see: self.sigma_see + dsigma_see,
+            // σ_s(λs ≥ 1) ≥ 0: the first-order value may dip below 0 by
+            // round-off when σ_s ≈ 0.
+            sigma_see: (self.sigma_see + dsigma_see).max(0.0),
             sigma_pe: self.sigma_pe + (self.dw_dlambda * dlambda_f - dsigma_see),
             history: FibreHistory {
                 lambda_s: self.history.lambda_s + dls,
