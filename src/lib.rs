@@ -10,9 +10,11 @@
 //! The cdylib exports the C API of exactly one FMU, chosen by a Cargo feature
 //! (`export-hill1d`); `fmu_build` builds it once per FMU.
 
+pub mod fe;
 pub mod fmi2;
 pub mod fmus;
 pub mod law;
+pub mod specimen;
 
 #[cfg(feature = "export-hill1d")]
 crate::export_fmi2!(crate::fmus::hill1d::Hill1D);
