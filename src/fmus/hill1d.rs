@@ -31,11 +31,10 @@ use crate::law::{solve_uniaxial, FibreHistory, FibreRate, ParamId, Params, Uniax
 /// Rest length of the paper's specimen [m].
 pub const DEFAULT_L0: f64 = 0.05;
 
-/// Default cross-section [m²]: π (0.0175 m)² / 4, the area of the paper's
-/// fusiform muscle at its largest (middle) section. This is a placeholder
-/// until the FE FMU defines the specimen's volume V0, when the default becomes
-/// the mean area V0 / L0 so that both variants give the same stress scale.
-pub const DEFAULT_AREA: f64 = std::f64::consts::PI * 0.0175 * 0.0175 / 4.0;
+/// Default cross-section [m²]: the mean cross-section V0/L0 of the paper's
+/// fusiform specimen ([`crate::specimen::MEAN_AREA`] ≈ 1.6849e-4), the same
+/// stress scale as the FE muscle.
+pub const DEFAULT_AREA: f64 = crate::specimen::MEAN_AREA;
 
 /// A variable of `HillMuscle1D`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -534,7 +533,7 @@ impl Model for Hill1D {
         ));
         v.push(parameter(
             "area",
-            "Reference cross-section area (default: pi (0.0175 m)^2 / 4, the fusiform specimen's middle section)",
+            "Reference cross-section area (default: the mean cross-section V0/L0 of the paper's fusiform specimen)",
             real("m2", Some(DEFAULT_AREA), None, None),
             Var::Area,
         ));

@@ -21,7 +21,9 @@ PARAMETERS = {
     "D": ("1/Pa", 1.0e-9),
     "k": ("1", 0.3),
     "L0": ("m", 0.05),
-    "area": ("m2", 3.141592653589793 * 0.0175**2 / 4),
+    # The mean cross-section V0/L0 of the fusiform specimen (src/specimen.rs):
+    # r(x) = r_e + (r_m - r_e) sin(pi x / L), V0 = pi [r_e^2 L + 2 r_e d (2L/pi) + d^2 L/2].
+    "area": ("m2", 3.141592653589793 * (0.0045**2 * 0.05 + 2 * 0.0045 * 0.00425 * (2 * 0.05 / 3.141592653589793) + 0.00425**2 * 0.05 / 2) / 0.05),
     "initial_activation": ("1", 0.0),
 }
 INPUTS = {"activation": ("1", 0.0), "length": ("m", 0.05)}
