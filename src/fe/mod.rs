@@ -1,3 +1,6 @@
-//! The 3D finite-element muscle: so far the procedural tetrahedral mesh of the paper's fusiform specimen.
+//! The 3D finite-element muscle: the procedural tetrahedral mesh of the
+//! paper's fusiform specimen and the locking-free tetrahedron (isochoric
+//! element response plus an average-nodal-pressure volumetric term).
 
+pub mod element;
 pub mod mesh;

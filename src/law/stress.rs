@@ -123,12 +123,19 @@ impl LawPoint {
         self.kirchhoff() / self.j
     }
 
-    /// J c : d for a symmetric `d` (module docs, "Tangent").
+    /// J c : d for a symmetric `d` (module docs, "Tangent"): the isochoric
+    /// and volumetric parts.
     pub fn tangent_apply(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
+        self.tangent_apply_isochoric(d) + self.tangent_apply_volumetric(d)
+    }
+
+    /// The isochoric part of J c : d (the U_I and U_f terms of the module
+    /// docs' tangent), for elements whose volumetric response is taken
+    /// elsewhere (e.g. on nodal volumes).
+    pub fn tangent_apply_isochoric(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
         let id = Matrix3::identity();
         let tr_d = d.trace();
         let (u1, u11) = self.du_i;
-        let (uj, ujj) = self.du_j;
         let (lf, w, dw) = (self.lambda_f, self.fibre.w, self.fibre.dw_dlambda);
         let i4 = lf * lf;
         let psi4 = w / (2.0 * lf);
@@ -140,13 +147,18 @@ impl LawPoint {
         let second = |g: &Matrix3<f64>, ibar: f64| -> Matrix3<f64> {
             (g * tr_d + id * g.dot(d)) * (-1.0 / 3.0) + id * (ibar * tr_d / 9.0) + d * (ibar / 3.0)
         };
-        let j = self.j;
         n1 * (4.0 * u11 * n1.dot(d))
             + second(&self.b_bar, self.i1_bar) * (4.0 * u1)
             + n4 * (4.0 * psi44 * n4.dot(d))
             + second(&g4, i4) * (4.0 * psi4)
-            + id * (j * j * ujj * tr_d)
-            + (id * tr_d - d * 2.0) * (j * uj)
+    }
+
+    /// The volumetric part of J c : d: J² U_J'' tr(d) I + J U_J' (tr(d) I − 2 d).
+    pub fn tangent_apply_volumetric(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
+        let (uj, ujj) = self.du_j;
+        let (j, tr_d) = (self.j, d.trace());
+        Matrix3::identity() * (j * j * ujj * tr_d)
+            + (Matrix3::identity() * tr_d - d * 2.0) * (j * uj)
     }
 
     /// Variation of the Kirchhoff stress for δF = g F:
@@ -155,6 +167,14 @@ impl LawPoint {
         let tau = self.kirchhoff();
         let d = (g + g.transpose()) * 0.5;
         self.tangent_apply(&d) + g * tau + tau * g.transpose()
+    }
+
+    /// Variation of the isochoric Kirchhoff stress for δF = g F:
+    /// δτ_iso = J c_iso : sym(g) + g τ_iso + τ_iso gᵀ.
+    pub fn kirchhoff_isochoric_variation(&self, g: &Matrix3<f64>) -> Matrix3<f64> {
+        let tau = self.kirchhoff_isochoric();
+        let d = (g + g.transpose()) * 0.5;
+        self.tangent_apply_isochoric(&d) + g * tau + tau * g.transpose()
     }
 
     /// ∂τ/∂a at fixed F: λ̄f (∂W/∂a) dev(a⊗a).
@@ -358,6 +378,40 @@ mod tests {
             &FibreHistory::REST,
             FibreRate::Isometric,
         );
+    }
+
+    #[test]
+    fn isochoric_tangent_matches_finite_differences() {
+        // The split used by elements with a separate volumetric term: the
+        // isochoric Kirchhoff stress and its variation, at the default D.
+        let p = Params::default();
+        let dir = Vector3::new(0.8, 0.6, 0.0);
+        let hist = FibreHistory {
+            lambda_s: 1.3,
+            lambda_m: 0.95,
+        };
+        let rate = FibreRate::Step { h: 1e-3 };
+        for seed in [7u64, 19, 23] {
+            let f = sample_f(seed);
+            let pt = LawPoint::new(&p, &f, &dir, 0.7, &hist, rate);
+            let tau_iso = |ff: &Matrix3<f64>| {
+                LawPoint::new(&p, ff, &dir, 0.7, &hist, rate).kirchhoff_isochoric()
+            };
+            let g = sample_f(seed + 100) - Matrix3::identity();
+            let e = 1e-7;
+            let id = Matrix3::identity();
+            let fd = (tau_iso(&((id + g * e) * f)) - tau_iso(&((id - g * e) * f))) / (2.0 * e);
+            let an = pt.kirchhoff_isochoric_variation(&g);
+            assert!(
+                (fd - an).norm() < 1e-5 * an.norm().max(fd.norm()),
+                "fd\n{fd}\nan\n{an}"
+            );
+            // The parts add up to the whole.
+            let d = (g + g.transpose()) * 0.5;
+            let whole = pt.tangent_apply(&d);
+            let parts = pt.tangent_apply_isochoric(&d) + pt.tangent_apply_volumetric(&d);
+            assert!((whole - parts).norm() <= 1e-12 * whole.norm());
+        }
     }
 
     #[test]
