@@ -489,6 +489,22 @@ pub fn decode_state<M: Model>(guid: &str, data: &[u8]) -> Result<Snapshot<M>, St
     let model_terminated = r.bool().map_err(e)?;
     let mut model_bytes = r.bytes().map_err(e)?;
     r.expect_end().map_err(e)?;
+    // The layer's own values, checked as strictly as the calls that set them.
+    for (name, v) in [
+        ("time", time),
+        ("start time", start_time),
+        ("last successful time", last_successful_time),
+    ] {
+        if !v.is_finite() {
+            return Err(format!("malformed FMU state: {name} = {v} is not finite"));
+        }
+    }
+    if stop_defined && !(stop.is_finite() && stop >= start_time) {
+        return Err(format!(
+            "malformed FMU state: stop time {stop} must be finite and >= the start time {start_time}"
+        ));
+    }
+
     let model = M::deserialize(&mut model_bytes)
         .map_err(|err| format!("malformed model state: {}", err.0))?;
     if !model_bytes.is_empty() {

@@ -23,7 +23,7 @@ use crate::fmi2::{
 };
 use crate::law::activation::{activation_step, Decay};
 use crate::law::hill_fibre::ce_stretch;
-use crate::law::params::Range;
+use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
 use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, evaluable_stretch_range, Sensitivity};
 use crate::law::{solve_uniaxial, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS};
@@ -262,8 +262,16 @@ impl Predictor {
     /// The predictor after a step (h, Δλ, Δa, Δq, Δλs) that ended at `u`
     /// (`None`: initialization, no history rate yet).
     fn after(&self, u: &Uniaxial, step: Option<(f64, f64, f64, f64, f64)>) -> Predictor {
-        let rate =
-            |s: &[f64; 4], dx: f64, dl: f64, da: f64, h: f64| (dx - s[0] * dl - s[1] * da) / h;
+        // Only a solver's starting point: a rate that overflows (a step of a
+        // few ulps) is dropped rather than committed.
+        let rate = |s: &[f64; 4], dx: f64, dl: f64, da: f64, h: f64| {
+            let r = (dx - s[0] * dl - s[1] * da) / h;
+            if r.is_finite() {
+                r
+            } else {
+                0.0
+            }
+        };
         let (rq, rls) = match step {
             Some((h, dl, da, dq, dls)) => (
                 rate(&self.q, dq, dl, da, h),
@@ -388,8 +396,8 @@ impl Hill1D {
         self.params
             .validate()
             .map_err(|e| ModelError(e.to_string()))?;
-        check_positive("L0", self.l0)?;
-        check_positive("area", self.area)?;
+        check_range("L0", self.l0, L0_RANGE)?;
+        check_range("area", self.area, AREA_RANGE)?;
         check_unit_interval("initial_activation", self.initial_activation)?;
         check_positive("length", self.length())?;
         Ok(())
@@ -402,6 +410,16 @@ fn check_positive(name: &str, v: f64) -> Result<(), ModelError> {
     } else {
         Err(ModelError(format!(
             "{name} = {v} is out of range: must be finite and > 0"
+        )))
+    }
+}
+
+fn check_range(name: &str, v: f64, range: Range) -> Result<(), ModelError> {
+    if range.contains(v) {
+        Ok(())
+    } else {
+        Err(ModelError(format!(
+            "{name} = {v} is out of range: must be {range}"
         )))
     }
 }
@@ -422,16 +440,6 @@ fn real(unit: &'static str, start: Option<f64>, min: Option<f64>, max: Option<f6
         start,
         min,
         max,
-    }
-}
-
-/// The XML `min` of a parameter's valid range, where the range has an
-/// inclusive lower bound (`A` ≥ 0, `d` ≥ 1). Strict bounds (> 0, < 0) cannot be
-/// written as FMI min/max; they are checked when the value is set.
-fn range_min(range: Range) -> Option<f64> {
-    match range {
-        Range::AtLeast(lo) => Some(lo),
-        Range::Positive | Range::Negative => None,
     }
 }
 
@@ -520,7 +528,12 @@ impl Model for Hill1D {
                 parameter(
                     info.name,
                     info.description,
-                    real(info.unit, Some(info.default), range_min(info.range), None),
+                    real(
+                        info.unit,
+                        Some(info.default),
+                        Some(info.range.min),
+                        Some(info.range.max),
+                    ),
                     Var::Param(info.id),
                 )
             })
@@ -528,13 +541,18 @@ impl Model for Hill1D {
         v.push(parameter(
             "L0",
             "Rest length of the muscle",
-            real("m", Some(DEFAULT_L0), None, None),
+            real(
+                "m",
+                Some(DEFAULT_L0),
+                Some(L0_RANGE.min),
+                Some(L0_RANGE.max),
+            ),
             Var::L0,
         ));
         v.push(parameter(
             "area",
             "Reference cross-section area (default: the mean cross-section V0/L0 of the paper's fusiform specimen)",
-            real("m2", Some(DEFAULT_AREA), None, None),
+            real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
             Var::Area,
         ));
         v.push(parameter(
@@ -568,7 +586,12 @@ impl Model for Hill1D {
         v.push(input(
             "length",
             "Muscle length reached at the end of the step",
-            real("m", Some(DEFAULT_L0), None, None),
+            real(
+                "m",
+                Some(DEFAULT_L0),
+                Some(L0_RANGE.min),
+                Some(L0_RANGE.max),
+            ),
             Var::Length,
         ));
         // Dependencies at initialization (the isometric equilibrium, f_v = 1:
@@ -673,11 +696,11 @@ impl Model for Hill1D {
                 .set(id, value)
                 .map_err(|e| ModelError(e.to_string()))?,
             Var::L0 => {
-                check_positive("L0", value)?;
+                check_range("L0", value, L0_RANGE)?;
                 self.l0 = value;
             }
             Var::Area => {
-                check_positive("area", value)?;
+                check_range("area", value, AREA_RANGE)?;
                 self.area = value;
             }
             Var::InitialActivation => {
@@ -767,6 +790,10 @@ impl Model for Hill1D {
             1.0,
         )
         .map_err(|e| ModelError(self.unsolvable(length, &e.0)))?;
+        u.fibre
+            .history
+            .check_physical(self.params.k, u.lambda_f)
+            .map_err(|e| ModelError(format!("length = {length} m: {e}")))?;
         let (outputs, jacobian) = self.evaluate(&u, a, da_du);
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(ModelError(self.unsolvable(length, "a non-finite output")));
@@ -825,10 +852,20 @@ impl Model for Hill1D {
             q_guess,
         )
         .map_err(|e| StepError::Discard(self.unsolvable(end_length, &e.0)))?;
+        u.fibre
+            .history
+            .check_physical(self.params.k, u.lambda_f)
+            .map_err(|e| StepError::Discard(format!("length = {end_length} m: {e}")))?;
         let (outputs, jacobian) = self.evaluate(&u, a, da_du);
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(StepError::Discard(format!(
                 "non-finite output at stretch {lambda}"
+            )));
+        }
+        if jacobian.to_values().iter().any(|x| !x.is_finite()) {
+            return Err(StepError::Discard(format!(
+                "non-finite partial derivative at stretch {lambda} with h = {h:e} s \
+                 (a step this short cannot be resolved)"
             )));
         }
         self.commit(&u, a, Some(h), outputs, jacobian);

@@ -37,6 +37,27 @@ pub fn ce_stretch(k: f64, lambda_f: f64, lambda_s: f64) -> f64 {
 }
 
 impl FibreHistory {
+    /// Whether the series kinematics (MODEL_NOTES "Hill fibre") describe a real
+    /// fibre: both element stretches finite and > 0. The law itself stays
+    /// defined when λm = (1 + k) λ̄f − k λs ≤ 0 (only λ̇m enters f_v), but a
+    /// contractile element of non-positive length is not a muscle: with a large
+    /// k this happens as soon as λ̄f < k λs / (1 + k). The error names the bound.
+    pub fn check_physical(&self, k: f64, lambda_f: f64) -> Result<(), String> {
+        let ok = |x: f64| x.is_finite() && x > 0.0;
+        if ok(self.lambda_m) && ok(self.lambda_s) {
+            Ok(())
+        } else {
+            Err(format!(
+                "the contractile element would have a non-positive length: CE stretch \
+                 (1 + k) * fibre_stretch - k * see_stretch = {:e} with k = {k}, fibre stretch {lambda_f} \
+                 and SEE stretch {} (the fibre stretch must exceed k * see_stretch / (1 + k) = {})",
+                self.lambda_m,
+                self.lambda_s,
+                k * self.lambda_s / (1.0 + k)
+            ))
+        }
+    }
+
     /// Unloaded fibre at its rest length: λs = λm = 1.
     pub const REST: FibreHistory = FibreHistory {
         lambda_s: 1.0,

@@ -22,38 +22,42 @@ pub enum ParamId {
     K,
 }
 
-/// Valid range of a parameter.
+/// Valid range of a parameter: a closed interval `[min, max]` of finite values.
+///
+/// The bounds are physical, not numerical conveniences: wide enough for every
+/// muscle the paper's ranges and the stiff-case grid of the stability matrix
+/// cover (several decades beyond both), narrow enough that no derived quantity
+/// of the law (SEE stiffness `alpha*beta`, `exp(b (I1bar - 3))` over the law's
+/// stretch range, `1/L0`) can overflow or underflow to zero.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Range {
-    /// `x > 0`
-    Positive,
-    /// `x >= lo`
-    AtLeast(f64),
-    /// `x < 0`
-    Negative,
+pub struct Range {
+    pub min: f64,
+    pub max: f64,
 }
 
 impl Range {
-    /// Whether the (finite) value lies in the range.
+    /// Whether the value is finite and lies in `[min, max]`.
     pub fn contains(self, x: f64) -> bool {
-        x.is_finite()
-            && match self {
-                Range::Positive => x > 0.0,
-                Range::AtLeast(lo) => x >= lo,
-                Range::Negative => x < 0.0,
-            }
+        x.is_finite() && x >= self.min && x <= self.max
     }
 }
 
 impl fmt::Display for Range {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Range::Positive => write!(f, "finite and > 0"),
-            Range::AtLeast(lo) => write!(f, "finite and >= {lo}"),
-            Range::Negative => write!(f, "finite and < 0"),
-        }
+        write!(f, "finite and in [{:e}, {:e}]", self.min, self.max)
     }
 }
+
+const fn between(min: f64, max: f64) -> Range {
+    Range { min, max }
+}
+
+/// Valid range of a muscle's rest length `L0` (m): from a 0.1 mm fibre bundle
+/// to a 10 m cable; `1/L0` and `L0 * stretch` stay far from overflow.
+pub const L0_RANGE: Range = between(1e-4, 10.0);
+
+/// Valid range of a reference cross-section `area` (m²).
+pub const AREA_RANGE: Range = between(1e-10, 1.0);
 
 /// Name, default, unit, valid range and meaning of one parameter.
 #[derive(Clone, Copy, Debug)]
@@ -75,7 +79,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "b",
         default: 23.46,
         unit: "1",
-        range: Range::Positive,
+        range: between(1e-3, 100.0),
         description: "Matrix exponent b of U_I = c (exp(b (I1bar - 3)) - 1)",
     },
     ParamInfo {
@@ -83,7 +87,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "c",
         default: 379.0,
         unit: "Pa",
-        range: Range::Positive,
+        range: between(1e-3, 1e8),
         description: "Matrix stiffness c",
     },
     ParamInfo {
@@ -91,7 +95,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "alpha",
         default: 10.0,
         unit: "1",
-        range: Range::Positive,
+        range: between(0.1, 1e4),
         description: "SEE exponent alpha (eq 6)",
     },
     ParamInfo {
@@ -99,7 +103,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "beta",
         default: 1.0e3,
         unit: "Pa",
-        range: Range::Positive,
+        range: between(1e-3, 1e9),
         description: "SEE stress offset beta (eq 6)",
     },
     ParamInfo {
@@ -107,7 +111,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "A",
         default: 4.0,
         unit: "1",
-        range: Range::AtLeast(0.0),
+        range: between(0.0, 1e3),
         description: "PE coefficient A (eq 22-23)",
     },
     ParamInfo {
@@ -115,7 +119,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "sigma0",
         default: 7.0e5,
         unit: "Pa",
-        range: Range::Positive,
+        range: between(1.0, 1e9),
         description: "Maximum isometric stress sigma0 (paper range 0.16-1.0 MPa)",
     },
     ParamInfo {
@@ -123,7 +127,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "S",
         default: 50.0,
         unit: "1/s",
-        range: Range::Positive,
+        range: between(1e-3, 1e7),
         description: "Activation rate S (eq 9-10)",
     },
     ParamInfo {
@@ -131,7 +135,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "kc",
         default: 5.0,
         unit: "1",
-        range: Range::Positive,
+        range: between(1e-2, 1e3),
         description: "Concentric force-velocity shape k_c (paper range 4.0-5.88)",
     },
     ParamInfo {
@@ -139,7 +143,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "ke",
         default: 5.0,
         unit: "1",
-        range: Range::Positive,
+        range: between(1e-2, 1e3),
         description: "Eccentric force-velocity shape k_e (paper range 3.14-7.56)",
     },
     ParamInfo {
@@ -147,7 +151,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "d",
         default: 1.5,
         unit: "1",
-        range: Range::AtLeast(1.0),
+        range: between(1.0, 100.0),
         description: "Eccentric force-velocity offset d (paper range 1.1-1.8)",
     },
     ParamInfo {
@@ -155,7 +159,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "lambda_dot_min",
         default: -17.0,
         unit: "1/s",
-        range: Range::Negative,
+        range: between(-1e4, -1e-6),
         description: "Minimum (most negative) CE stretch rate",
     },
     ParamInfo {
@@ -163,7 +167,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "lambda_opt",
         default: 1.05,
         unit: "1",
-        range: Range::Positive,
+        range: between(0.5, 2.0),
         description: "Optimal fibre stretch (eq 11)",
     },
     ParamInfo {
@@ -171,7 +175,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "D",
         default: 1.0e-9,
         unit: "1/Pa",
-        range: Range::Positive,
+        range: between(1e-15, 1e-2),
         description: "Compressibility D (bulk modulus 2/D)",
     },
     ParamInfo {
@@ -179,7 +183,7 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         name: "k",
         default: 0.3,
         unit: "1",
-        range: Range::Positive,
+        range: between(1e-3, 1e3),
         description: "SEE-to-CE rest length ratio k = L_SEE,0 / L_CE,0",
     },
 ];
