@@ -1,0 +1,640 @@
+#!/usr/bin/env python3
+"""A MuJoCo elbow driven by the HillMuscle1D FMU: co-simulation coupling schemes.
+
+The model (MJCF inline below, ``ARM_XML``; written by this project)
+--------------------------------------------------------------------
+A planar elbow in the x-z plane: the upper arm is fixed (world geoms, elbow at
+the origin, shoulder up at z = 0.30 m); the forearm (1.5 kg capsule, 0.28 m)
+hangs on a hinge at the elbow (axis -y: a positive angle is flexion, 0 = arm
+straight down) under gravity, with a 1.0 kg hand load at 0.30 m (about the
+elbow: I = 0.127 kg m^2, gravity torque 5.0 N m at 90 deg). Joint damping
+0.05 N m s, joint range [-0.1, 2.6] rad.
+
+The elbow flexor is a spatial tendon ``flexor``: origin site on the upper arm
+(0.025, 0, 0.28), insertion site on the forearm 0.04 m below the elbow
+(0.015 m in front), wrapping over a cylinder of radius 0.02 m at the elbow
+(side site in front), so that near full extension (angle < ~7 deg) the path
+wraps around the elbow instead of passing through the joint (moment arm
+stays 0.02 m there). MuJoCo computes its length: 0.3204 m at 0 deg,
+0.2875 m at 60 deg, 0.2654 m at 90 deg, 0.2470 m at 120 deg (moment arm
+-dL/dq: 0.020, 0.042, 0.041, 0.027 m).
+
+The whole tendon path is the muscle (no series tendon): muscle length =
+``ten_length``. A ``general`` actuator on the tendon with unit gain and no
+bias applies ctrl as the tendon force; in MuJoCo a *positive* actuator force
+on a tendon acts to *lengthen* it (generalized force = ten_J^T * force, and
+ten_J = dL/dq < 0 for this flexor), so a muscle tension F (positive in the
+FMU) is applied as ``ctrl = -F``. ``check_sign()`` verifies it numerically:
+ctrl = -100 N (100 N of tension) gives a positive (flexing) elbow
+acceleration.
+
+Muscle sizing (the FMU's ``L0`` and ``area``)
+--------------------------------------------
+``L0 = 0.29 m`` (the path length at ~57 deg) and ``area = 5e-4 m^2``
+(5 cm^2, brachialis-like; maximum isometric force sigma0 * area = 350 N, ~14
+N m at the elbow vs 5.0 N m of gravity). Over the working range 0 .. 120 deg
+the stretch L/L0 goes from 1.105 to 0.852 and the fibre stretch
+lambda_f/lambda_opt (lambda_opt = 1.05) from 1.05 to 0.81: inside the
+force-length support [0.6, 1.4] where f_lambda = 1 - 4 (1 - r)^2 >= 0.84
+(``working_range()`` recomputes these numbers from the model; the tests
+check the recorded fibre_stretch of the flex-and-hold runs).
+
+Co-simulation loop (one communication step of size H = n * dt, dt the
+MuJoCo step, 1 ms by default)
+-------------------------------------------------------------------------
+At a communication point t, ``mj_step1`` has been done: ``ten_length`` and
+``ten_velocity`` are those of the state at t (after ``mj_step`` they would be
+the pre-step values). The master reads L(t), dL/dt(t) and the elbow angle,
+computes the activation command u (controller below), sets them into the FMU
+through fmpy's ``FMU2Slave``, does ``doStep(t, H)``, and then runs n MuJoCo
+steps (``ctrl`` set, ``mj_step2``, ``mj_step1``), ctrl = -force as the scheme
+says:
+
+``explicit``      zero-order hold: the FMU moves to L(t) (length input only),
+                  its force F is applied unchanged over [t, t + H].
+``derivative``    input derivatives: length L(t) and dL/dt(t) (order 1), so
+                  the FMU step ends at L(t) + H dL/dt; its force at t + H is
+                  applied over [t, t + H], linearly interpolated from the
+                  force of the previous step.
+``implicit``      linearly implicit: as ``derivative``, plus K = d force /
+                  d length from ``fmi2GetDirectionalDerivative`` (the
+                  stiffness of that step map); in each MuJoCo step the force
+                  is F + K (L_now - L_set), with L_set = L(t) + H dL/dt the
+                  length the FMU ended at and L_now the current tendon length
+                  (read after mj_step1), so the muscle's stiffness acts at
+                  the MuJoCo rate rather than once per communication step.
+``iterated``      Gauss-Seidel with rollback: the FMU state
+                  (getFMUstate/setFMUstate) and mjData (mj_copyData) at t are
+                  saved; the FMU is stepped to a guessed end length L*
+                  (start: L(t) + H dL/dt), its force is applied over the
+                  MuJoCo steps (linear from the previous force), the end
+                  length L(t + H) replaces L*, both are rolled back, and
+                  this repeats until |L(t + H) - L*| < 1e-9 m (max 20
+                  iterations). The accurate reference.
+
+Controller (activation command, evaluated at the communication points):
+u = 0 until 0.05 s, a step u = 0.6 until the elbow passes 0.5 * target (or
+0.35 s), then PD around a bias, u = clip(u_hold + kp (target - angle)
+- kd angle_rate, 0, 1), target 90 deg (u_hold = 0.40, kp = 2.0 /rad,
+kd = 0.4 s/rad).
+
+Stability check (``stability``): a run is flagged unstable when a value goes
+non-finite, the FMU rejects a step, |force| exceeds 5x the maximum isometric
+force, the angle leaves [-0.5, 3.2] rad, or the hold phase's oscillation
+energy grows (kinetic energy at the end > 4x that at the start of the last
+half). The run stops at the first flag and returns what it has, no exception.
+
+Experiments (``EXPERIMENTS``): ``flex_hold`` (the controller above, 1 s),
+``hold`` (open loop, constant command 0.4 at 90 deg with a 1 rad/s kick: the
+same command for every step size) and ``hold_stiff`` (``hold`` with a 5 cm
+fibre, L0 = 0.05 m, in series with a rigid tendon, ~5x stiffer; valid near
+90 deg only). Measured results: docs/coupling.md.
+
+Usage::
+
+    python examples/arm_mujoco.py                      # all schemes, flex_hold, H = 1 ms, plot to docs/figures
+    python examples/arm_mujoco.py --scheme implicit --step 0.02
+    python examples/arm_mujoco.py --experiment hold_stiff --step 0.096 --t-end 2.0
+    python examples/arm_mujoco.py --sweep --experiment hold --t-end 2.0   # stability limits, error vs wall time
+
+Only ``HillMuscle1D`` is implemented here (``--model fe`` is not: no FE FMU
+exists in dist/).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from elongation import DEFAULT_FMU, Muscle  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+
+ARM_XML = """
+<mujoco model="elbow_flexor">
+  <compiler angle="radian"/>
+  <option timestep="0.001" gravity="0 0 -9.81" integrator="Euler"/>
+  <worldbody>
+    <geom name="upper_arm" type="capsule" fromto="0 0 0.30 0 0 0" size="0.03" contype="0" conaffinity="0"/>
+    <site name="origin" pos="0.025 0 0.28" size="0.005"/>
+    <geom name="elbow_wrap" type="cylinder" pos="0 0 0" zaxis="0 1 0" size="0.02 0.03" contype="0" conaffinity="0"/>
+    <site name="elbow_side" pos="0.06 0 0" size="0.003"/>
+    <body name="forearm" pos="0 0 0">
+      <joint name="elbow" type="hinge" axis="0 -1 0" range="-0.1 2.6" limited="true" damping="0.05"/>
+      <geom name="forearm" type="capsule" fromto="0 0 0 0 0 -0.28" size="0.025" mass="1.5" contype="0" conaffinity="0"/>
+      <site name="insertion" pos="0.015 0 -0.04" size="0.005"/>
+      <geom name="hand_load" type="sphere" pos="0 0 -0.30" size="0.04" mass="1.0" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+  <tendon>
+    <spatial name="flexor" width="0.004">
+      <site site="origin"/>
+      <geom geom="elbow_wrap" sidesite="elbow_side"/>
+      <site site="insertion"/>
+    </spatial>
+  </tendon>
+  <actuator>
+    <general name="muscle" tendon="flexor" gainprm="1" biasprm="0 0 0" ctrllimited="false"/>
+  </actuator>
+</mujoco>
+"""
+
+MUSCLE_PARAMS = {"L0": 0.29, "area": 5e-4}
+SIGMA0 = 7.0e5
+LAMBDA_OPT = 1.05
+F_MAX = SIGMA0 * MUSCLE_PARAMS["area"]
+SCHEMES = ("explicit", "derivative", "implicit", "iterated")
+
+
+@dataclass
+class Replay:
+    """An open-loop activation command: the command samples (t, u) of a
+    reference run, linearly interpolated, so that every scheme and step sees
+    the same command signal (``Replay.of(result)``)."""
+
+    times: np.ndarray
+    values: np.ndarray
+
+    def __call__(self, t, angle=None, rate=None):
+        return float(np.interp(t, self.times, self.values))
+
+    @classmethod
+    def of(cls, result):
+        ok = np.isfinite(result.command)
+        return cls(result.t[ok], result.command[ok])
+
+
+@dataclass
+class Controller:
+    target: float = np.radians(90.0)
+    t_on: float = 0.05
+    u_step: float = 0.6
+    t_pd_latest: float = 0.35
+    u_hold: float = 0.40
+    kp: float = 2.0
+    kd: float = 0.4
+    switch: float = 0.5
+    pd: bool = False
+
+    def __call__(self, t, angle, rate):
+        if t < self.t_on - 1e-12:
+            return 0.0
+        if not self.pd and (angle >= self.switch * self.target or t >= self.t_pd_latest - 1e-12):
+            self.pd = True
+        if not self.pd:
+            return self.u_step
+        u = self.u_hold + self.kp * (self.target - angle) - self.kd * rate
+        return float(min(1.0, max(0.0, u)))
+
+
+def build_model(dt=1e-3):
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(ARM_XML)
+    model.opt.timestep = dt
+    return model
+
+
+def check_sign():
+    """Elbow acceleration (no gravity, at rest, 45 deg) under 100 N of muscle
+    tension applied as ctrl = -100: positive means flexion (tendon shortens)."""
+    import mujoco
+
+    model = build_model()
+    model.opt.gravity[:] = 0.0
+    data = mujoco.MjData(model)
+    data.qpos[0] = np.radians(45.0)
+    data.ctrl[0] = -100.0
+    mujoco.mj_forward(model, data)
+    return float(data.qacc[0]), _dLdq(model, data)
+
+
+def _dLdq(model, data):
+    """d ten_length / d elbow angle (the tendon Jacobian, dense or sparse)."""
+    J = np.asarray(data.ten_J).ravel()
+    return float(J[0]) if J.size >= model.nv else float("nan")
+
+
+def working_range(angles_deg=(0.0, 60.0, 90.0, 120.0)):
+    """(angle deg, tendon length, moment arm, L/L0, fibre stretch / lambda_opt
+    in the incompressible approximation lambda_f = L/L0)."""
+    import mujoco
+
+    model = build_model()
+    data = mujoco.MjData(model)
+    rows = []
+    for deg in angles_deg:
+        data.qpos[0] = np.radians(deg)
+        mujoco.mj_forward(model, data)
+        L = float(data.ten_length[0])
+        lam = L / MUSCLE_PARAMS["L0"]
+        rows.append((deg, L, -_dLdq(model, data), lam, lam / LAMBDA_OPT))
+    return rows
+
+
+@dataclass
+class Result:
+    scheme: str
+    H: float
+    dt: float
+    t: np.ndarray
+    angle: np.ndarray
+    length: np.ndarray
+    command: np.ndarray
+    activation: np.ndarray
+    force: np.ndarray
+    fibre_stretch: np.ndarray
+    kinetic: np.ndarray
+    wall: float
+    iterations: float = 1.0
+    stable: bool = True
+    reason: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+def _kinetic(model, data):
+    import mujoco
+
+    mujoco.mj_energyVel(model, data)
+    return float(data.energy[1])
+
+
+def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, angle0=0.0,
+             controller=None, tol=1e-9, max_iter=20, record_stiffness=False, params=None, slack=0.0, qvel0=0.0):
+    """One coupled run; returns a ``Result`` sampled at the communication points.
+
+    ``params`` overrides the FMU parameters (default ``MUSCLE_PARAMS``);
+    ``slack`` is the length of a rigid series tendon: muscle length =
+    tendon path length - slack (default 0, the path is all muscle)."""
+    import mujoco
+
+    if scheme not in SCHEMES:
+        raise ValueError(f"scheme must be one of {SCHEMES}")
+    n_sub = int(round(H / dt))
+    if n_sub < 1 or abs(n_sub * dt - H) > 1e-9 * H:
+        raise ValueError(f"H = {H} must be a multiple of dt = {dt}")
+    n_comm = int(round(t_end / H))
+    ctrl_law = controller or Controller()
+    model = build_model(dt)
+    data = mujoco.MjData(model)
+    backup = mujoco.MjData(model)
+    data.qpos[0] = angle0
+    data.qvel[0] = qvel0
+    mujoco.mj_forward(model, data)
+    mujoco.mj_step1(model, data)
+
+    rec = {k: np.full(n_comm + 1, np.nan) for k in
+           ("t", "angle", "length", "command", "activation", "force", "fibre_stretch", "kinetic",
+            "stiffness")}
+    muscle = Muscle(fmu, {**MUSCLE_PARAMS, **(params or {})}, name=f"arm_{scheme}")
+    f_max = SIGMA0 * {**MUSCLE_PARAMS, **(params or {})}["area"]
+    vr = muscle.vr
+    vr_force, vr_len, vr_act = vr["force"], vr["length"], vr["activation"]
+    out_vrs = [vr["force"], vr["activation_level"], vr["fibre_stretch"]]
+    stable, reason, iters_total, unconverged = True, "", 0, 0
+    wall0 = _time.perf_counter()
+    try:
+        L = float(data.ten_length[0]) - slack
+        muscle.initialize(length=L, activation=0.0)
+        F_prev, a, lf = muscle.slave.getReal(out_vrs)
+
+        def record(i):
+            rec["t"][i] = i * H
+            rec["angle"][i] = data.qpos[0]
+            rec["length"][i] = data.ten_length[0] - slack
+            rec["activation"][i] = a
+            rec["force"][i] = F_prev
+            rec["fibre_stretch"][i] = lf
+            rec["kinetic"][i] = _kinetic(model, data)
+
+        record(0)
+        slave = muscle.slave
+        for i in range(n_comm):
+            t = i * H
+            L = float(data.ten_length[0]) - slack
+            dL = float(data.ten_velocity[0])
+            u = ctrl_law(t, float(data.qpos[0]), float(data.qvel[0]))
+            rec["command"][i] = u
+            if scheme == "explicit":
+                slave.setReal([vr_len, vr_act], [L, u])
+                slave.doStep(t, H)
+                F = slave.getReal([vr_force])[0]
+                for _ in range(n_sub):
+                    data.ctrl[0] = -F
+                    mujoco.mj_step2(model, data)
+                    mujoco.mj_step1(model, data)
+            elif scheme in ("derivative", "implicit"):
+                slave.setReal([vr_len, vr_act], [L, u])
+                slave.setRealInputDerivatives([vr_len], [1], [dL])
+                slave.doStep(t, H)
+                F = slave.getReal([vr_force])[0]
+                if scheme == "derivative":
+                    for j in range(n_sub):
+                        data.ctrl[0] = -(F_prev + (F - F_prev) * (j + 0.5) / n_sub)
+                        mujoco.mj_step2(model, data)
+                        mujoco.mj_step1(model, data)
+                else:
+                    K = slave.getDirectionalDerivative([vr_force], [vr_len], [1.0])[0]
+                    for j in range(n_sub):
+                        # deviation of the length at the end of this MuJoCo step (predicted
+                        # with the current velocity) from the FMU's straight path L + tau dL
+                        dev = data.ten_length[0] - slack + dt * data.ten_velocity[0] - (L + (j + 1) * dt * dL)
+                        data.ctrl[0] = -(F_prev + (F - F_prev) * (j + 0.5) / n_sub + K * dev)
+                        mujoco.mj_step2(model, data)
+                        mujoco.mj_step1(model, data)
+            else:  # iterated
+                state = slave.getFMUstate()
+                mujoco.mj_copyData(backup, model, data)
+                L_star = L + H * dL
+                for k in range(max_iter):
+                    if k:
+                        slave.setFMUstate(state)
+                        mujoco.mj_copyData(data, model, backup)
+                    slave.setReal([vr_len, vr_act], [L_star, u])
+                    slave.doStep(t, H)
+                    F = slave.getReal([vr_force])[0]
+                    for j in range(n_sub):
+                        data.ctrl[0] = -(F_prev + (F - F_prev) * (j + 0.5) / n_sub)
+                        mujoco.mj_step2(model, data)
+                        mujoco.mj_step1(model, data)
+                    L_end = float(data.ten_length[0]) - slack
+                    iters_total += 1
+                    if abs(L_end - L_star) < tol:
+                        break
+                    L_star = L_end
+                else:
+                    unconverged += 1
+                slave.freeFMUstate(state)
+            F_prev, a, lf = slave.getReal(out_vrs)
+            if record_stiffness:
+                rec["stiffness"][i + 1] = slave.getDirectionalDerivative([vr_force], [vr_len], [1.0])[0]
+            record(i + 1)
+            rec["command"][i + 1] = u
+            bad = _flag(rec, i + 1, H, f_max)
+            if bad:
+                stable, reason = False, bad
+                break
+    except Exception as exc:  # an FMU rejection (fmpy raises on discard/error) or MuJoCo trouble
+        stable, reason = False, f"{type(exc).__name__}: {exc}"
+    finally:
+        wall = _time.perf_counter() - wall0
+        muscle.free()
+    if stable:
+        bad = _energy_growth(rec)
+        if bad:
+            stable, reason = False, bad
+    n_done = int(np.sum(np.isfinite(rec["t"])))
+    return Result(scheme, H, dt, *(rec[k] for k in ("t", "angle", "length", "command", "activation", "force",
+                                                    "fibre_stretch", "kinetic")),
+                  wall=wall, iterations=iters_total / max(1, n_done - 1) if scheme == "iterated" else 1.0,
+                  stable=stable, reason=reason, extra={"stiffness": rec["stiffness"], "unconverged_steps": unconverged})
+
+
+def _flag(rec, i, H, f_max):
+    """Per-step divergence check (see the module docstring)."""
+    vals = [rec[k][i] for k in ("angle", "length", "force", "kinetic")]
+    if not all(np.isfinite(vals)):
+        return f"non-finite value at t = {i * H:.4g} s"
+    if abs(rec["force"][i]) > 5 * f_max:
+        return f"|force| = {abs(rec['force'][i]):.4g} N > 5 F_max at t = {i * H:.4g} s"
+    if not -0.5 <= rec["angle"][i] <= 3.2:
+        return f"angle {rec['angle'][i]:.4g} rad out of range at t = {i * H:.4g} s"
+    return ""
+
+
+def _energy_growth(rec):
+    """Oscillation energy growth in the hold phase (the last half of the run)."""
+    t, ke = rec["t"], rec["kinetic"]
+    T = np.nanmax(t)
+    first = ke[(t >= 0.5 * T) & (t < 0.625 * T)]
+    last = ke[t >= 0.875 * T]
+    if first.size and last.size and np.max(last) > 4 * max(np.max(first), 1e-6):
+        return f"kinetic energy grows in the hold phase ({np.max(first):.3g} J -> {np.max(last):.3g} J)"
+    return ""
+
+
+def stability(result):
+    """(stable, reason) of a run."""
+    return result.stable, result.reason
+
+
+def error_vs(result, reference):
+    """Max |angle - angle_ref| [rad] at the result's communication points
+    (reference interpolated) over the whole run; inf if unstable."""
+    if not result.stable:
+        return float("inf")
+    ok = np.isfinite(result.t)
+    ref = np.interp(result.t[ok], reference.t, reference.angle)
+    return float(np.max(np.abs(result.angle[ok] - ref)))
+
+
+def force_error_vs(result, reference):
+    if not result.stable:
+        return float("inf")
+    ok = np.isfinite(result.t)
+    ref = np.interp(result.t[ok], reference.t, reference.force)
+    return float(np.max(np.abs(result.force[ok] - ref)))
+
+
+# --------------------------------------------------------------------------
+# Experiments
+# --------------------------------------------------------------------------
+
+L_AT_90 = 0.26542
+"""Tendon path length at 90 deg [m] (``working_range``)."""
+STIFF_L0 = 0.05
+STIFF_SLACK = L_AT_90 - 0.95 * STIFF_L0
+"""The stiff variant: the paper's 5 cm muscle in series with a rigid tendon of
+this length, so that the fibre stretch is 0.95 at 90 deg (valid for a hold
+near 90 deg only: at 0 deg L/L0 would be 2.05, outside the support)."""
+U_HOLD = 0.4
+
+EXPERIMENTS = ("flex_hold", "hold", "hold_stiff")
+"""``flex_hold``: from the hanging arm, the step-then-PD controller (1 s).
+``hold``: open loop, constant command 0.4 (initial_activation 0.4, isometric
+start), elbow at 90 deg with an initial 1 rad/s flexion kick; every step size
+sees the same command, so differences are the coupling's.
+``hold_stiff``: ``hold`` with the stiff variant (L0 = 0.05 m + rigid tendon):
+a 5.8x shorter fibre, ~5x the stiffness d force/d length."""
+
+
+def experiment_kwargs(experiment):
+    """Keyword arguments of ``simulate`` for a named experiment (the
+    controller is a fresh object per call: it has state)."""
+    if experiment == "flex_hold":
+        return {"controller": Controller()}
+    hold = {"controller": Replay(np.array([0.0]), np.array([U_HOLD])), "angle0": np.radians(90.0), "qvel0": 1.0}
+    if experiment == "hold":
+        return {**hold, "params": {"initial_activation": U_HOLD}}
+    if experiment == "hold_stiff":
+        return {**hold, "params": {"initial_activation": U_HOLD, "L0": STIFF_L0}, "slack": STIFF_SLACK}
+    raise ValueError(f"experiment must be one of {EXPERIMENTS}")
+
+
+def run(experiment, scheme, H, **kw):
+    return simulate(scheme, H, **{**experiment_kwargs(experiment), **kw})
+
+
+def largest_stable_step(experiment, scheme, steps, **kw):
+    """The largest H in ``steps`` (ascending) below which every step tried ran
+    stably, and the list of (H, stable, reason)."""
+    table, best = [], None
+    for H in steps:
+        r = run(experiment, scheme, H, **kw)
+        table.append((H, r.stable, r.reason))
+        if r.stable and all(st for _, st, _ in table):
+            best = H
+    return best, table
+
+
+# --------------------------------------------------------------------------
+# Plots, sweep, command line
+# --------------------------------------------------------------------------
+
+def plot_runs(results, path, title=""):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(4, 1, figsize=(7, 9), sharex=True)
+    for r in results:
+        lab = f"{r.scheme}, H = {1e3 * r.H:g} ms" + ("" if r.stable else " (unstable)")
+        ax[0].plot(r.t, np.degrees(r.angle), label=lab)
+        ax[1].plot(r.t, 1e3 * r.length, label=lab)
+        ax[2].plot(r.t, r.activation, label=lab)
+        ax[2].plot(r.t, r.command, ":", color=ax[2].lines[-1].get_color())
+        ax[3].plot(r.t, r.force, label=lab)
+    stable = [r for r in results if r.stable]
+    if stable and len(stable) < len(results):  # keep the axes on the stable runs; diverged ones leave the plot
+        for k, get in enumerate((lambda r: np.degrees(r.angle), lambda r: 1e3 * r.length, None, lambda r: r.force)):
+            if get is None:
+                continue
+            lo = min(np.nanmin(get(r)) for r in stable)
+            hi = max(np.nanmax(get(r)) for r in stable)
+            pad = 0.5 * (hi - lo) + 1e-9
+            ax[k].set_ylim(lo - pad, hi + pad)
+    ax[0].set_ylabel("elbow angle [deg]")
+    ax[1].set_ylabel("muscle length [mm]")
+    ax[2].set_ylabel("activation (dotted: command)")
+    ax[3].set_ylabel("force [N]")
+    ax[3].set_xlabel("time [s]")
+    ax[0].legend(fontsize=7)
+    if title:
+        ax[0].set_title(title)
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+SWEEP_STEPS_MS = (1, 2, 4, 8, 16, 32, 48, 64, 80, 96, 112, 128, 160, 192, 256)
+
+
+def sweep(experiment, steps_ms=SWEEP_STEPS_MS, t_end=2.0, out=None):
+    """Every scheme at every step: stable?, max angle and force error vs the
+    iterated scheme at H = 1 ms, wall time. Prints a markdown table."""
+    reference = run(experiment, "iterated", 1e-3, t_end=t_end)
+    rows = []
+    print(f"\n### {experiment} (t_end = {t_end:g} s, reference: iterated at H = 1 ms)\n")
+    print("| scheme | H [ms] | stable | max angle error [deg] | max force error [N] | wall [ms] | iterations/step "
+          "| unconverged steps |")
+    print("|---|---|---|---|---|---|---|---|")
+    for scheme in SCHEMES:
+        for h in steps_ms:
+            r = run(experiment, scheme, h * 1e-3, t_end=t_end)
+            row = (scheme, h, r.stable, error_vs(r, reference), force_error_vs(r, reference), r.wall,
+                   r.iterations, r.reason)
+            row = row + (r.extra["unconverged_steps"],)
+            rows.append(row)
+            status = "yes" if r.stable else f"**no**: {r.reason}"
+            print(f"| {scheme} | {h} | {status} | {np.degrees(row[3]):.3g} | {row[4]:.3g} | {1e3 * r.wall:.1f} "
+                  f"| {r.iterations:.2f} | {r.extra['unconverged_steps'] if scheme == 'iterated' else ''} |", flush=True)
+    print()
+    for scheme in SCHEMES:
+        rs = [r for r in rows if r[0] == scheme]
+        best = None
+        for r in rs:
+            if not r[2] or r[8]:  # unstable, or (iterated) a step whose iteration did not converge
+                break
+            best = r[1]
+        print(f"largest stable step ({experiment}, {scheme}): {best} ms"
+              + (" (stable and every step's iteration converged)" if scheme == "iterated" else ""))
+    if out is not None:
+        _plot_work_precision(rows, out, f"{experiment}, {t_end:g} s simulated")
+    return reference, rows
+
+
+def _plot_work_precision(rows, path, title=""):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    for scheme in SCHEMES:
+        rs = [r for r in rows if r[0] == scheme and r[2] and r[3] > 0]
+        if not rs:
+            continue
+        ax[0].loglog([r[1] for r in rs], [np.degrees(r[3]) for r in rs], "o-", label=scheme)
+        ax[1].loglog([1e3 * r[5] for r in rs], [np.degrees(r[3]) for r in rs], "o-", label=scheme)
+    ax[0].set_xlabel("communication step H [ms]")
+    ax[1].set_xlabel("wall time [ms]")
+    if title:
+        fig.suptitle(title)
+    for a in ax:
+        a.set_ylabel("max |angle - reference| [deg]")
+        a.grid(alpha=0.3, which="both")
+        a.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--scheme", choices=SCHEMES + ("all",), default="all")
+    p.add_argument("--step", type=float, default=1e-3, help="communication step H [s]")
+    p.add_argument("--t-end", type=float, default=1.0)
+    p.add_argument("--model", choices=("1d", "fe"), default="1d")
+    p.add_argument("--fmu", default=str(DEFAULT_FMU))
+    p.add_argument("--experiment", choices=EXPERIMENTS, default="flex_hold")
+    p.add_argument("--sweep", action="store_true", help="stability limits and error vs wall time")
+    p.add_argument("--out", default=str(REPO / "docs" / "figures"))
+    args = p.parse_args(argv)
+    if args.model != "1d":
+        p.error("--model fe: no FE muscle FMU is built in this project yet")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    qacc, J = check_sign()
+    print(f"sign check: 100 N tension (ctrl = -100) -> elbow acceleration {qacc:+.3f} rad/s^2 (dL/dq = {J:.4f} m)")
+    for deg, L, r, lam, rel in working_range():
+        print(f"  {deg:5.0f} deg: L = {L:.4f} m, moment arm {1e3 * r:.1f} mm, L/L0 = {lam:.3f}, "
+              f"lambda_f/lambda_opt ~ {rel:.3f}")
+    if args.sweep:
+        sweep(args.experiment, t_end=args.t_end, out=out / f"arm_{args.experiment}_work_precision.png")
+        return 0
+    schemes = SCHEMES if args.scheme == "all" else (args.scheme,)
+    results = []
+    for s in schemes:
+        r = run(args.experiment, s, args.step, t_end=args.t_end, fmu=args.fmu)
+        results.append(r)
+        last = int(np.flatnonzero(np.isfinite(r.angle))[-1])
+        print(f"{s:10s} H = {args.step:g} s: stable={r.stable} {r.reason} angle at t = {r.t[last]:.3g} s: "
+              f"{np.degrees(r.angle[last]):.3f} deg, force {r.force[last]:.2f} N, fibre stretch [{np.nanmin(r.fibre_stretch):.3f}, "
+              f"{np.nanmax(r.fibre_stretch):.3f}] wall {1e3 * r.wall:.1f} ms")
+    name = f"arm_{args.experiment}_{args.scheme}_H{1e3 * args.step:g}ms.png"
+    plot_runs(results, out / name, f"HillMuscle1D on a MuJoCo elbow ({args.experiment}), H = {1e3 * args.step:g} ms")
+    print(f"wrote {out / name}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
