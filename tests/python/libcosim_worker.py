@@ -1,16 +1,25 @@
 """Subprocess half of test_libcosim.py: run HillMuscle1D under libcosim
 (libcosimpy), so that a crash in libcosim fails the test instead of killing
-pytest.
+pytest (and libcosim's and fmpy's copies of the FMU never share a process).
 
     python libcosim_worker.py FMU PLAN_JSON
 
-PLAN_JSON: {"step_ns": int, "activation": float (hex), "lengths": [hex, ...]}.
+PLAN_JSON (floats as float.hex strings, so that they cross exactly):
+
+- ``step_ns``: the execution's fixed step [ns];
+- ``lengths``: the length input for steps 0 .. N-1;
+- ``activation`` (one value for every step) or ``activations`` (one per step):
+  the activation command;
+- ``params`` (optional): {name: value} Real parameters, given to libcosim as
+  initial values (applied before the FMU leaves initialization mode);
+- ``initial`` (optional): {"length": ..., "activation": ...}, the inputs'
+  values at initialization (default: those of step 0).
+
 The execution has a fixed step of step_ns nanoseconds and the single slave.
-`length` and `activation` get initial values (length: the first entry);
-before step i an override manipulator sets length = lengths[i] and the
-activation; a time-series observer records `force` and `length` after steps 1..N. Prints one
-JSON line: {"time_ns": [...], "step": [...], "force": [hex...],
-"length": [hex...], "ok": bool}.
+Before step i an override manipulator sets length = lengths[i] and the
+activation command of step i; a time-series observer records `force` and
+`length` after steps 1..N. Prints one JSON line: {"time_ns": [...],
+"step": [...], "force": [hex...], "length": [hex...], "ok": bool}.
 """
 
 from __future__ import annotations
@@ -29,8 +38,13 @@ from libcosimpy.CosimSlave import CosimLocalSlave
 def main(fmu, plan_json):
     plan = json.loads(plan_json)
     lengths = [float.fromhex(x) for x in plan["lengths"]]
-    activation = float.fromhex(plan["activation"])
     n = len(lengths)
+    if "activations" in plan:
+        activations = [float.fromhex(x) for x in plan["activations"]]
+    else:
+        activations = [float.fromhex(plan["activation"])] * n
+    assert len(activations) == n, "one activation per step"
+    initial = {k: float.fromhex(v) for k, v in plan.get("initial", {}).items()}
     log_output_level(CosimLogLevel.WARNING)
 
     execution = CosimExecution.from_step_size(step_size=int(plan["step_ns"]))
@@ -39,8 +53,10 @@ def main(fmu, plan_json):
     assert index >= 0, "cannot add the slave"
     vr = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
 
-    assert execution.real_initial_value(index, vr["length"], lengths[0])
-    assert execution.real_initial_value(index, vr["activation"], activation)
+    for name, value in plan.get("params", {}).items():
+        assert execution.real_initial_value(index, vr[name], float.fromhex(value)), f"initial value of {name}"
+    assert execution.real_initial_value(index, vr["length"], initial.get("length", lengths[0]))
+    assert execution.real_initial_value(index, vr["activation"], initial.get("activation", activations[0]))
 
     manipulator = CosimManipulator.create_override()
     assert execution.add_manipulator(manipulator=manipulator)
@@ -51,7 +67,7 @@ def main(fmu, plan_json):
 
     ok = True
     for i in range(n):
-        ok &= manipulator.slave_real_values(index, [vr["length"], vr["activation"]], [lengths[i], activation])
+        ok &= manipulator.slave_real_values(index, [vr["length"], vr["activation"]], [lengths[i], activations[i]])
         ok &= execution.step()
     out = {"ok": bool(ok)}
     for name in ("force", "length"):
