@@ -63,6 +63,10 @@ says:
                   length the FMU ended at and L_now the current tendon length
                   (read after mj_step1), so the muscle's stiffness acts at
                   the MuJoCo rate rather than once per communication step.
+                  With an FMU that cannot interpolate inputs (or
+                  ``input_derivatives=False``), ``derivative`` and
+                  ``implicit`` set the length input L(t) + H dL/dt instead
+                  (the same end length and rate).
 ``iterated``      Gauss-Seidel with rollback: the FMU state
                   (getFMUstate/setFMUstate) and mjData (mj_copyData) at t are
                   saved; the FMU is stepped to a guessed end length L*
@@ -90,15 +94,34 @@ same command for every step size) and ``hold_stiff`` (``hold`` with a 5 cm
 fibre, L0 = 0.05 m, in series with a rigid tendon, ~5x stiffer; valid near
 90 deg only). Measured results: docs/coupling.md.
 
+The FE muscle (``--model fe``)
+------------------------------
+``--model fe`` runs ``dist/HillMuscleFE.fmu`` (issue 3: the paper's fusiform
+specimen meshed with tetrahedra, quasi-static FE per step, same inputs and
+outputs as HillMuscle1D, Integer mesh parameters set with ``--mesh
+NAME=VALUE``; its ``L0`` and ``area`` parameters scale the specimen to the
+arm's muscle, as for the 1D model). An FE step costs ~1-20 ms, so the FE
+communicates at a coarser rate than MuJoCo: by default H = ``FE_STEP`` =
+10 ms, i.e. one FE step per 10 MuJoCo steps of 1 ms (100 Hz), with the
+linearly implicit scheme (the FE's d force / d length from its converged
+tangent acts at the MuJoCo rate in between; with the 1D muscle at that H
+the angle error vs the iterated 1 ms reference is 0.06 deg in ``hold``,
+and 2.7 deg in ``flex_hold``, where the controller sampled at 100 Hz
+dominates). A scheme the FMU's capability flags do not allow (implicit
+without providesDirectionalDerivative, iterated without
+canGetAndSetFMUstate) is refused with a message; without
+canInterpolateInputs the master sets the extrapolated length instead of
+the derivative. When the FE FMU is absent the script says so and falls
+back to HillMuscle1D at the same communication step.
+
 Usage::
 
     python examples/arm_mujoco.py                      # all schemes, flex_hold, H = 1 ms, plot to docs/figures
     python examples/arm_mujoco.py --scheme implicit --step 0.02
     python examples/arm_mujoco.py --experiment hold_stiff --step 0.096 --t-end 2.0
     python examples/arm_mujoco.py --sweep --experiment hold --t-end 2.0   # stability limits, error vs wall time
-
-Only ``HillMuscle1D`` is implemented here (``--model fe`` is not: no FE FMU
-exists in dist/).
+    python examples/arm_mujoco.py --model fe           # HillMuscleFE, implicit, H = 10 ms
+    python examples/arm_mujoco.py --model fe --scheme all --mesh n_axial=6 --mesh n_radial=1
 """
 
 from __future__ import annotations
@@ -146,6 +169,10 @@ ARM_XML = """
 """
 
 MUSCLE_PARAMS = {"L0": 0.29, "area": 5e-4}
+FE_FMU = REPO / "dist" / "HillMuscleFE.fmu"
+FE_STEP = 10e-3
+"""Default communication step of the FE muscle [s]: 10 MuJoCo steps (module docstring)."""
+MODELS = ("1d", "fe")
 SIGMA0 = 7.0e5
 LAMBDA_OPT = 1.05
 F_MAX = SIGMA0 * MUSCLE_PARAMS["area"]
@@ -258,6 +285,41 @@ class Result:
     extra: dict = field(default_factory=dict)
 
 
+def fmu_capabilities(fmu):
+    """The FMU's Co-Simulation capability flags that the schemes rely on."""
+    from elongation import load_fmu
+
+    cs = load_fmu(fmu).model_description.coSimulation
+    return {"input_derivatives": bool(cs.canInterpolateInputs),
+            "directional_derivatives": bool(cs.providesDirectionalDerivative),
+            "state": bool(cs.canGetAndSetFMUstate)}
+
+
+SCHEME_NEEDS = {"explicit": (), "derivative": (), "implicit": ("directional_derivatives",), "iterated": ("state",)}
+"""What each scheme needs of the FMU. ``derivative`` and ``implicit`` use
+input derivatives when the FMU can interpolate inputs and otherwise set the
+extrapolated length (``simulate``)."""
+
+
+def unsupported(fmu, scheme):
+    """Why ``scheme`` cannot run with this FMU ("" when it can)."""
+    caps = fmu_capabilities(fmu)
+    flags = {"directional_derivatives": "providesDirectionalDerivative", "state": "canGetAndSetFMUstate"}
+    missing = [flags[c] for c in SCHEME_NEEDS[scheme] if not caps[c]]
+    return f"the {scheme} scheme needs {', '.join(missing)} = true in the FMU's modelDescription" if missing else ""
+
+
+def _set_integer_parameters(muscle, values):
+    """Set Integer parameters (the FE mesh resolution) by name."""
+    variables = muscle.loaded.variables
+    for name, value in (values or {}).items():
+        v = variables.get(name)
+        if v is None or v.type != "Integer" or v.causality != "parameter":
+            ints = sorted(n for n, x in variables.items() if x.type == "Integer" and x.causality == "parameter")
+            raise ValueError(f"{name} is not an Integer parameter of {muscle.loaded.path.name} (those: {ints})")
+        muscle.slave.setInteger([v.valueReference], [int(value)])
+
+
 def _kinetic(model, data):
     import mujoco
 
@@ -266,16 +328,31 @@ def _kinetic(model, data):
 
 
 def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, angle0=0.0,
-             controller=None, tol=1e-9, max_iter=20, record_stiffness=False, params=None, slack=0.0, qvel0=0.0):
+             controller=None, tol=1e-9, max_iter=20, record_stiffness=False, params=None, slack=0.0, qvel0=0.0,
+             mesh=None, input_derivatives=None):
     """One coupled run; returns a ``Result`` sampled at the communication points.
 
     ``params`` overrides the FMU parameters (default ``MUSCLE_PARAMS``);
     ``slack`` is the length of a rigid series tendon: muscle length =
-    tendon path length - slack (default 0, the path is all muscle)."""
+    tendon path length - slack (default 0, the path is all muscle);
+    ``mesh``: Integer parameters by name (the FE FMU's mesh resolution).
+    ``input_derivatives`` (default: when the FMU can interpolate inputs):
+    whether the derivative and implicit schemes pass dL/dt through
+    ``setRealInputDerivatives``; without, the master sets the extrapolated
+    length L(t) + H dL/dt as the input, the same end length (the FMU moves
+    linearly to its length input over a step either way).
+    ``extra["stiffness"]`` holds the K of the implicit scheme (or, with
+    ``record_stiffness``, of any scheme).
+    ``extra`` holds the time spent in ``doStep`` (``fmu_wall``) and the
+    number of ``doStep`` calls (``fmu_steps``)."""
     import mujoco
 
     if scheme not in SCHEMES:
         raise ValueError(f"scheme must be one of {SCHEMES}")
+    why = unsupported(fmu, scheme)
+    if why:
+        raise ValueError(f"{Path(fmu).name}: {why}")
+    derivs = fmu_capabilities(fmu)["input_derivatives"] if input_derivatives is None else bool(input_derivatives)
     n_sub = int(round(H / dt))
     if n_sub < 1 or abs(n_sub * dt - H) > 1e-9 * H:
         raise ValueError(f"H = {H} must be a multiple of dt = {dt}")
@@ -292,13 +369,26 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
     rec = {k: np.full(n_comm + 1, np.nan) for k in
            ("t", "angle", "length", "command", "activation", "force", "fibre_stretch", "kinetic",
             "stiffness")}
-    muscle = Muscle(fmu, {**MUSCLE_PARAMS, **(params or {})}, name=f"arm_{scheme}")
+    all_params = {**MUSCLE_PARAMS, **(params or {})}
+    from elongation import load_fmu
+
+    missing = sorted(set(all_params) - set(load_fmu(fmu).variables))
+    if missing:
+        raise ValueError(f"{Path(fmu).name} has no parameter(s) {missing}: cannot size the muscle for the arm")
+    muscle = Muscle(fmu, all_params, name=f"arm_{scheme}")
+    try:
+        _set_integer_parameters(muscle, mesh)
+    except Exception:
+        muscle.free()
+        raise
     f_max = SIGMA0 * {**MUSCLE_PARAMS, **(params or {})}["area"]
     vr = muscle.vr
     vr_force, vr_len, vr_act = vr["force"], vr["length"], vr["activation"]
     out_vrs = [vr["force"], vr["activation_level"], vr["fibre_stretch"]]
     stable, reason, iters_total, unconverged = True, "", 0, 0
-    wall0 = _time.perf_counter()
+    fmu_wall, fmu_steps = 0.0, 0
+    clock = _time.perf_counter
+    wall0 = clock()
     try:
         L = float(data.ten_length[0]) - slack
         muscle.initialize(length=L, activation=0.0)
@@ -323,16 +413,25 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
             rec["command"][i] = u
             if scheme == "explicit":
                 slave.setReal([vr_len, vr_act], [L, u])
+                c0 = clock()
                 slave.doStep(t, H)
+                fmu_wall += clock() - c0
+                fmu_steps += 1
                 F = slave.getReal([vr_force])[0]
                 for _ in range(n_sub):
                     data.ctrl[0] = -F
                     mujoco.mj_step2(model, data)
                     mujoco.mj_step1(model, data)
             elif scheme in ("derivative", "implicit"):
-                slave.setReal([vr_len, vr_act], [L, u])
-                slave.setRealInputDerivatives([vr_len], [1], [dL])
+                if derivs:
+                    slave.setReal([vr_len, vr_act], [L, u])
+                    slave.setRealInputDerivatives([vr_len], [1], [dL])
+                else:  # the same end length, extrapolated by the master
+                    slave.setReal([vr_len, vr_act], [L + H * dL, u])
+                c0 = clock()
                 slave.doStep(t, H)
+                fmu_wall += clock() - c0
+                fmu_steps += 1
                 F = slave.getReal([vr_force])[0]
                 if scheme == "derivative":
                     for j in range(n_sub):
@@ -341,6 +440,7 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
                         mujoco.mj_step1(model, data)
                 else:
                     K = slave.getDirectionalDerivative([vr_force], [vr_len], [1.0])[0]
+                    rec["stiffness"][i + 1] = K
                     for j in range(n_sub):
                         # deviation of the length at the end of this MuJoCo step (predicted
                         # with the current velocity) from the FMU's straight path L + tau dL
@@ -357,7 +457,10 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
                         slave.setFMUstate(state)
                         mujoco.mj_copyData(data, model, backup)
                     slave.setReal([vr_len, vr_act], [L_star, u])
+                    c0 = clock()
                     slave.doStep(t, H)
+                    fmu_wall += clock() - c0
+                    fmu_steps += 1
                     F = slave.getReal([vr_force])[0]
                     for j in range(n_sub):
                         data.ctrl[0] = -(F_prev + (F - F_prev) * (j + 0.5) / n_sub)
@@ -372,7 +475,7 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
                     unconverged += 1
                 slave.freeFMUstate(state)
             F_prev, a, lf = slave.getReal(out_vrs)
-            if record_stiffness:
+            if record_stiffness and scheme != "implicit":
                 rec["stiffness"][i + 1] = slave.getDirectionalDerivative([vr_force], [vr_len], [1.0])[0]
             record(i + 1)
             rec["command"][i + 1] = u
@@ -383,7 +486,7 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
     except Exception as exc:  # an FMU rejection (fmpy raises on discard/error) or MuJoCo trouble
         stable, reason = False, f"{type(exc).__name__}: {exc}"
     finally:
-        wall = _time.perf_counter() - wall0
+        wall = clock() - wall0
         muscle.free()
     if stable:
         bad = _energy_growth(rec)
@@ -393,7 +496,8 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
     return Result(scheme, H, dt, *(rec[k] for k in ("t", "angle", "length", "command", "activation", "force",
                                                     "fibre_stretch", "kinetic")),
                   wall=wall, iterations=iters_total / max(1, n_done - 1) if scheme == "iterated" else 1.0,
-                  stable=stable, reason=reason, extra={"stiffness": rec["stiffness"], "unconverged_steps": unconverged})
+                  stable=stable, reason=reason, extra={"stiffness": rec["stiffness"], "unconverged_steps": unconverged,
+                                                       "fmu_wall": fmu_wall, "fmu_steps": fmu_steps})
 
 
 def _flag(rec, i, H, f_max):
@@ -598,19 +702,61 @@ def _plot_work_precision(rows, path, title=""):
     plt.close(fig)
 
 
+def _mesh_arg(text):
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name}: {value!r} is not an integer") from None
+
+
+def resolve_model(model, fmu=None, out=sys.stderr):
+    """(model, fmu path) to run. ``--model fe`` without ``--fmu`` uses
+    ``FE_FMU``; when that file is absent it says so on ``out`` and falls back
+    to HillMuscle1D. An explicit ``--fmu`` that does not exist is an error."""
+    if fmu is not None:
+        if not Path(fmu).is_file():
+            raise FileNotFoundError(f"{fmu} not found (build the FMUs with scripts/build_fmus.sh)")
+        return model, Path(fmu)
+    if model == "fe" and not FE_FMU.is_file():
+        print(f"--model fe: {FE_FMU} not found (the FE muscle FMU of issue 3; build it with "
+              f"scripts/build_fmus.sh once it exists). Falling back to HillMuscle1D ({DEFAULT_FMU}) "
+              f"at the same communication step.", file=out)
+        return "1d", DEFAULT_FMU
+    return model, (FE_FMU if model == "fe" else DEFAULT_FMU)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--scheme", choices=SCHEMES + ("all",), default="all")
-    p.add_argument("--step", type=float, default=1e-3, help="communication step H [s]")
+    p.add_argument("--scheme", choices=SCHEMES + ("all",), default=None,
+                   help="default: all (1d), implicit (fe)")
+    p.add_argument("--step", type=float, default=None,
+                   help=f"communication step H [s] (default: 1e-3 for 1d, FE_STEP = {FE_STEP:g} for fe)")
     p.add_argument("--t-end", type=float, default=1.0)
-    p.add_argument("--model", choices=("1d", "fe"), default="1d")
-    p.add_argument("--fmu", default=str(DEFAULT_FMU))
+    p.add_argument("--model", choices=MODELS, default="1d")
+    p.add_argument("--fmu", default=None, help="FMU path (default: dist/HillMuscle1D.fmu or dist/HillMuscleFE.fmu)")
+    p.add_argument("--mesh", type=_mesh_arg, action="append", default=[], metavar="NAME=VALUE",
+                   help="Integer parameter of the FMU (FE mesh resolution), repeatable")
     p.add_argument("--experiment", choices=EXPERIMENTS, default="flex_hold")
     p.add_argument("--sweep", action="store_true", help="stability limits and error vs wall time")
     p.add_argument("--out", default=str(REPO / "docs" / "figures"))
     args = p.parse_args(argv)
-    if args.model != "1d":
-        p.error("--model fe: no FE muscle FMU is built in this project yet")
+    requested = args.model
+    step = args.step if args.step is not None else (FE_STEP if requested == "fe" else 1e-3)
+    scheme = args.scheme or ("implicit" if requested == "fe" else "all")
+    try:
+        model, fmu = resolve_model(requested, args.fmu)
+    except FileNotFoundError as exc:
+        p.error(str(exc))
+    mesh = dict(args.mesh)
+    if mesh and model != "fe":
+        print(f"--mesh {mesh} ignored: the 1D model has no mesh", file=sys.stderr)
+        mesh = {}
+    from elongation import load_fmu
+
+    name = load_fmu(fmu).model_description.modelName
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     qacc, J = check_sign()
@@ -618,21 +764,39 @@ def main(argv=None):
     for deg, L, r, lam, rel in working_range():
         print(f"  {deg:5.0f} deg: L = {L:.4f} m, moment arm {1e3 * r:.1f} mm, L/L0 = {lam:.3f}, "
               f"lambda_f/lambda_opt ~ {rel:.3f}")
+    print(f"muscle: {name} ({fmu}), communication step H = {1e3 * step:g} ms = {step / 1e-3:g} MuJoCo steps of 1 ms"
+          + (f", mesh {mesh}" if mesh else ""))
     if args.sweep:
+        if model != "1d":
+            p.error("--sweep runs the 1D model only")
         sweep(args.experiment, t_end=args.t_end, out=out / f"arm_{args.experiment}_work_precision.png")
         return 0
-    schemes = SCHEMES if args.scheme == "all" else (args.scheme,)
+    schemes = SCHEMES if scheme == "all" else (scheme,)
     results = []
     for s in schemes:
-        r = run(args.experiment, s, args.step, t_end=args.t_end, fmu=args.fmu)
+        why = unsupported(fmu, s)
+        if why:
+            print(f"{s:10s} skipped: {why}")
+            continue
+        try:
+            r = run(args.experiment, s, step, t_end=args.t_end, fmu=fmu, mesh=mesh)
+        except ValueError as exc:
+            p.error(str(exc))
         results.append(r)
-        last = int(np.flatnonzero(np.isfinite(r.angle))[-1])
-        print(f"{s:10s} H = {args.step:g} s: stable={r.stable} {r.reason} angle at t = {r.t[last]:.3g} s: "
-              f"{np.degrees(r.angle[last]):.3f} deg, force {r.force[last]:.2f} N, fibre stretch [{np.nanmin(r.fibre_stretch):.3f}, "
-              f"{np.nanmax(r.fibre_stretch):.3f}] wall {1e3 * r.wall:.1f} ms")
-    name = f"arm_{args.experiment}_{args.scheme}_H{1e3 * args.step:g}ms.png"
-    plot_runs(results, out / name, f"HillMuscle1D on a MuJoCo elbow ({args.experiment}), H = {1e3 * args.step:g} ms")
-    print(f"wrote {out / name}")
+        finite = np.flatnonzero(np.isfinite(r.angle))
+        last = int(finite[-1])
+        fmu_ms = 1e3 * r.extra["fmu_wall"] / max(1, r.extra["fmu_steps"])
+        print(f"{s:10s} H = {step:g} s: stable={r.stable} {r.reason} angle at t = {r.t[last]:.3g} s: "
+              f"{np.degrees(r.angle[last]):.3f} deg, force {r.force[last]:.2f} N, fibre stretch "
+              f"[{np.nanmin(r.fibre_stretch):.3f}, {np.nanmax(r.fibre_stretch):.3f}] wall {1e3 * r.wall:.1f} ms "
+              f"({r.extra['fmu_steps']} FMU steps, {fmu_ms:.3f} ms each)")
+    if not results:
+        print("no scheme could run with this FMU", file=sys.stderr)
+        return 1
+    tag = "" if model == "1d" else "_fe"
+    fname = f"arm{tag}_{args.experiment}_{scheme}_H{1e3 * step:g}ms.png"
+    plot_runs(results, out / fname, f"{name} on a MuJoCo elbow ({args.experiment}), H = {1e3 * step:g} ms")
+    print(f"wrote {out / fname}")
     return 0
 
 

@@ -7,6 +7,9 @@ takes a few seconds. Numbers quoted in the comments are the measured ones
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -102,3 +105,69 @@ def test_energy_growth_check_flags_synthetic_oscillation():
     assert am._energy_growth(rec)
     rec = {"t": t, "kinetic": np.exp(-t)}
     assert not am._energy_growth(rec)
+
+
+def test_extrapolated_length_equals_input_derivative(fmu_path):
+    """Setting the length input L + H dL/dt gives bit for bit the run with
+    the input derivative dL/dt (the FMU moves linearly to its end length
+    either way), so the derivative and implicit schemes also work with an FMU
+    that cannot interpolate inputs."""
+    for scheme in ("derivative", "implicit"):
+        a = am.run("hold", scheme, 16e-3, t_end=0.5, fmu=fmu_path, input_derivatives=True)
+        b = am.run("hold", scheme, 16e-3, t_end=0.5, fmu=fmu_path, input_derivatives=False)
+        assert a.stable and b.stable
+        assert np.array_equal(a.angle, b.angle) and np.array_equal(a.force, b.force), scheme
+
+
+# --------------------------------------------------------------------------
+# --model fe: the FE muscle at a coarse communication step
+# --------------------------------------------------------------------------
+
+def test_fe_missing_falls_back_with_message(tmp_path, monkeypatch):
+    """Without dist/HillMuscleFE.fmu, --model fe says so and runs HillMuscle1D;
+    an explicit --fmu that does not exist is an error."""
+    import io
+
+    monkeypatch.setattr(am, "FE_FMU", tmp_path / "HillMuscleFE.fmu")
+    msg = io.StringIO()
+    model, fmu = am.resolve_model("fe", out=msg)
+    assert (model, fmu) == ("1d", am.DEFAULT_FMU)
+    assert "HillMuscleFE.fmu not found" in msg.getvalue() and "Falling back to HillMuscle1D" in msg.getvalue()
+    with pytest.raises(FileNotFoundError):
+        am.resolve_model("fe", fmu=tmp_path / "nothing.fmu")
+    monkeypatch.setattr(am, "FE_FMU", am.DEFAULT_FMU)  # present: no message, no fallback
+    msg = io.StringIO()
+    assert am.resolve_model("fe", out=msg) == ("fe", am.DEFAULT_FMU) and not msg.getvalue()
+
+
+def test_mesh_parameter_must_exist(fmu_path):
+    """A mesh parameter the FMU does not have is refused before the run."""
+    with pytest.raises(ValueError, match="not an Integer parameter"):
+        am.run("hold", "explicit", 10e-3, t_end=0.02, fmu=fmu_path, mesh={"n_axial": 4})
+
+
+FE_PATH = Path(os.environ.get("HILL_MUSCLE_FE_FMU", am.FE_FMU))
+
+
+@pytest.mark.skipif(not FE_PATH.is_file(), reason=f"{FE_PATH} not built (the FE muscle FMU of issue 3)")
+def test_fe_coupled_run(fmu_path):
+    """The FE muscle on the elbow, communicating every FE_STEP = 10 ms (10
+    MuJoCo steps), linearly implicit with the FE's d force / d length: 0.4 s
+    of the flex-and-hold run (rest, activation step at 0.05 s, flexion)."""
+    t_end = 0.4
+    r = am.run("flex_hold", "implicit", am.FE_STEP, t_end=t_end, fmu=FE_PATH)
+    one_d = am.run("flex_hold", "implicit", am.FE_STEP, t_end=t_end, fmu=fmu_path)
+    n_fmu = int(round(t_end / am.FE_STEP))
+    print(f"FE: {r.extra['fmu_steps']} FE steps, {1e3 * r.extra['fmu_wall'] / max(1, r.extra['fmu_steps']):.2f} ms "
+          f"each, wall {r.wall:.2f} s; angle at {t_end} s: FE {np.degrees(r.angle[-1]):.2f} deg, "
+          f"1D {np.degrees(one_d.angle[-1]):.2f} deg; peak force FE {np.max(r.force):.1f} N, 1D {np.max(one_d.force):.1f} N")
+    assert r.stable, r.reason
+    assert r.extra["fmu_steps"] == n_fmu  # one FE step per communication step of 10 MuJoCo steps
+    assert np.all(np.isfinite(r.angle)) and np.all(np.isfinite(r.force))
+    assert np.max(np.abs(r.force)) < 2 * am.F_MAX
+    # the FE's stiffness, as the implicit scheme used it: finite and positive
+    K = r.extra["stiffness"][1:]
+    assert np.all(np.isfinite(K)) and np.all(K > 0)
+    # activation raises the force and flexes the elbow
+    assert np.max(r.force[r.t > 0.05]) > np.interp(0.04, r.t, r.force) + 50.0
+    assert np.degrees(r.angle[-1] - r.angle[0]) > 10.0
