@@ -485,6 +485,9 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
                 break
     except Exception as exc:  # an FMU rejection (fmpy raises on discard/error) or MuJoCo trouble
         stable, reason = False, f"{type(exc).__name__}: {exc}"
+        errors = [msg for status, _, msg in muscle.log if status >= 2]
+        if errors:
+            reason += f" (FMU: {errors[-1]})"
     finally:
         wall = clock() - wall0
         muscle.free()
@@ -558,14 +561,27 @@ STIFF_SLACK = L_AT_90 - 0.95 * STIFF_L0
 this length, so that the fibre stretch is 0.95 at 90 deg (valid for a hold
 near 90 deg only: at 0 deg L/L0 would be 2.05, outside the support)."""
 U_HOLD = 0.4
+L_AT_0 = 0.32036
+"""Tendon path length at 0 deg (arm hanging) [m] (``working_range``)."""
+PASSIVE_STRETCH = 1.25
+PASSIVE_SLACK = L_AT_0 - PASSIVE_STRETCH * STIFF_L0
+"""The passive variant: the 5 cm fibre + rigid tendon of this length, so that
+the relaxed muscle is stretched by 25 % when the arm hangs straight."""
 
-EXPERIMENTS = ("flex_hold", "hold", "hold_stiff")
+EXPERIMENTS = ("flex_hold", "hold", "hold_stiff", "passive_stiff")
 """``flex_hold``: from the hanging arm, the step-then-PD controller (1 s).
 ``hold``: open loop, constant command 0.4 (initial_activation 0.4, isometric
 start), elbow at 90 deg with an initial 1 rad/s flexion kick; every step size
 sees the same command, so differences are the coupling's.
 ``hold_stiff``: ``hold`` with the stiff variant (L0 = 0.05 m + rigid tendon):
-a 5.8x shorter fibre, ~5x the stiffness d force/d length."""
+a 5.8x shorter fibre, ~5x the stiffness d force/d length.
+``passive_stiff``: the relaxed muscle (command 0, activation 0) as a
+spring: the 5 cm fibre + rigid tendon stretched 25 % at 0 deg
+(``PASSIVE_SLACK``); released from the hanging arm at rest, its passive
+tension (matrix + PE, up to ~320 N) swings the forearm up to ~31 deg and
+back against gravity. With no active fibre force the CE's force-velocity
+damping is absent (SEE and CE carry nothing): the muscle is purely elastic,
+the only damping the hinge's."""
 
 
 def experiment_kwargs(experiment):
@@ -578,11 +594,19 @@ def experiment_kwargs(experiment):
         return {**hold, "params": {"initial_activation": U_HOLD}}
     if experiment == "hold_stiff":
         return {**hold, "params": {"initial_activation": U_HOLD, "L0": STIFF_L0}, "slack": STIFF_SLACK}
+    if experiment == "passive_stiff":
+        return {"controller": Replay(np.array([0.0]), np.array([0.0])), "angle0": 0.0, "qvel0": 0.0,
+                "params": {"initial_activation": 0.0, "L0": STIFF_L0}, "slack": PASSIVE_SLACK}
     raise ValueError(f"experiment must be one of {EXPERIMENTS}")
 
 
-def run(experiment, scheme, H, **kw):
-    return simulate(scheme, H, **{**experiment_kwargs(experiment), **kw})
+def run(experiment, scheme, H, overrides=None, **kw):
+    """``simulate`` on a named experiment; ``overrides`` are FMU parameters
+    set on top of the experiment's (e.g. ``{"alpha": 100.0}``)."""
+    args = {**experiment_kwargs(experiment), **kw}
+    if overrides:
+        args["params"] = {**args.get("params", {}), **overrides}
+    return simulate(scheme, H, **args)
 
 
 def largest_stable_step(experiment, scheme, steps, **kw):
@@ -642,24 +666,26 @@ def plot_runs(results, path, title=""):
 SWEEP_STEPS_MS = (1, 2, 4, 8, 16, 32, 48, 64, 80, 96, 112, 128, 160, 192, 256)
 
 
-def sweep(experiment, steps_ms=SWEEP_STEPS_MS, t_end=2.0, out=None):
+def sweep(experiment, steps_ms=SWEEP_STEPS_MS, t_end=2.0, out=None, overrides=None):
     """Every scheme at every step: stable?, max angle and force error vs the
-    iterated scheme at H = 1 ms, wall time. Prints a markdown table."""
-    reference = run(experiment, "iterated", 1e-3, t_end=t_end)
+    iterated scheme at H = 1 ms, wall time. Prints a markdown table.
+    ``overrides``: FMU parameters on top of the experiment's."""
+    reference = run(experiment, "iterated", 1e-3, t_end=t_end, overrides=overrides)
     rows = []
-    print(f"\n### {experiment} (t_end = {t_end:g} s, reference: iterated at H = 1 ms)\n")
+    print(f"\n### {experiment}{f' {overrides}' if overrides else ''} (t_end = {t_end:g} s, "
+          f"reference: iterated at H = 1 ms)\n")
     print("| scheme | H [ms] | stable | max angle error [deg] | max force error [N] | wall [ms] | iterations/step "
           "| unconverged steps |")
     print("|---|---|---|---|---|---|---|---|")
     for scheme in SCHEMES:
         for h in steps_ms:
-            r = run(experiment, scheme, h * 1e-3, t_end=t_end)
+            r = run(experiment, scheme, h * 1e-3, t_end=t_end, overrides=overrides)
             row = (scheme, h, r.stable, error_vs(r, reference), force_error_vs(r, reference), r.wall,
                    r.iterations, r.reason)
             row = row + (r.extra["unconverged_steps"],)
             rows.append(row)
             status = "yes" if r.stable else f"**no**: {r.reason}"
-            print(f"| {scheme} | {h} | {status} | {np.degrees(row[3]):.3g} | {row[4]:.3g} | {1e3 * r.wall:.1f} "
+            print(f"| {scheme} | {h:g} | {status} | {np.degrees(row[3]):.3g} | {row[4]:.3g} | {1e3 * r.wall:.1f} "
                   f"| {r.iterations:.2f} | {r.extra['unconverged_steps'] if scheme == 'iterated' else ''} |", flush=True)
     print()
     for scheme in SCHEMES:
@@ -669,7 +695,7 @@ def sweep(experiment, steps_ms=SWEEP_STEPS_MS, t_end=2.0, out=None):
             if not r[2] or r[8]:  # unstable, or (iterated) a step whose iteration did not converge
                 break
             best = r[1]
-        print(f"largest stable step ({experiment}, {scheme}): {best} ms"
+        print(f"largest stable step ({experiment}, {scheme}): {best if best is None else format(best, 'g')} ms"
               + (" (stable and every step's iteration converged)" if scheme == "iterated" else ""))
     if out is not None:
         _plot_work_precision(rows, out, f"{experiment}, {t_end:g} s simulated")
@@ -700,6 +726,16 @@ def _plot_work_precision(rows, path, title=""):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _real_arg(text):
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name}: {value!r} is not a number") from None
 
 
 def _mesh_arg(text):
@@ -740,6 +776,9 @@ def main(argv=None):
     p.add_argument("--mesh", type=_mesh_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="Integer parameter of the FMU (FE mesh resolution), repeatable")
     p.add_argument("--experiment", choices=EXPERIMENTS, default="flex_hold")
+    p.add_argument("--param", type=_real_arg, action="append", default=[], metavar="NAME=VALUE",
+                   help="Real FMU parameter on top of the experiment's (e.g. alpha=100), repeatable")
+    p.add_argument("--steps-ms", default=None, help="--sweep: comma-separated communication steps [ms]")
     p.add_argument("--sweep", action="store_true", help="stability limits and error vs wall time")
     p.add_argument("--out", default=str(REPO / "docs" / "figures"))
     args = p.parse_args(argv)
@@ -769,7 +808,10 @@ def main(argv=None):
     if args.sweep:
         if model != "1d":
             p.error("--sweep runs the 1D model only")
-        sweep(args.experiment, t_end=args.t_end, out=out / f"arm_{args.experiment}_work_precision.png")
+        steps_ms = tuple(float(x) for x in args.steps_ms.split(",")) if args.steps_ms else SWEEP_STEPS_MS
+        tag = "".join(f"_{k}{v:g}" for k, v in args.param)
+        sweep(args.experiment, steps_ms=steps_ms, t_end=args.t_end, overrides=dict(args.param) or None,
+              out=out / f"arm_{args.experiment}{tag}_work_precision.png")
         return 0
     schemes = SCHEMES if scheme == "all" else (scheme,)
     results = []
@@ -779,7 +821,8 @@ def main(argv=None):
             print(f"{s:10s} skipped: {why}")
             continue
         try:
-            r = run(args.experiment, s, step, t_end=args.t_end, fmu=fmu, mesh=mesh)
+            r = run(args.experiment, s, step, t_end=args.t_end, fmu=fmu, mesh=mesh,
+                    overrides=dict(args.param) or None)
         except ValueError as exc:
             p.error(str(exc))
         results.append(r)
