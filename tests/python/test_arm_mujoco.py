@@ -153,11 +153,18 @@ FE_TEST_MESH = {"n_axial": 6, "n_radial": 1}
 @pytest.mark.skipif(not FE_PATH.is_file(), reason=f"{FE_PATH} not built (the FE muscle FMU of issue 3)")
 def test_fe_coupled_run(fmu_path):
     """The FE muscle on the elbow, communicating every FE_STEP = 10 ms (10
-    MuJoCo steps), linearly implicit with the FE's d force / d length: 0.4 s
+    MuJoCo steps), linearly implicit with the FE's d force / d length: 0.3 s
     of the flex-and-hold run (rest, activation step at 0.05 s, flexion), on
     the coarsest mesh (FE_TEST_MESH, 108 tetrahedra) to keep the test short
-    (measured ~2 s; the default mesh takes ~15 s)."""
-    t_end = 0.4
+    (measured 1.7 s of coupled run; on the default 864-tetrahedron mesh an
+    FE step costs 0.4-0.8 s on this loaded machine).
+
+    Not covered (measured with the FE build of 2026-11-22, reported in
+    docs/coupling.md): later in the run, when the command has dropped to 0
+    and the muscle is compressed (L/L0 ~ 0.92-0.93, compressive force), every
+    scheme's FE step is discarded (no convergence in 64 substeps) at
+    t = 0.42-0.43 s; the run stops there and reports it."""
+    t_end = 0.3
     r = am.run("flex_hold", "implicit", am.FE_STEP, t_end=t_end, fmu=FE_PATH, mesh=FE_TEST_MESH)
     one_d = am.run("flex_hold", "implicit", am.FE_STEP, t_end=t_end, fmu=fmu_path)
     n_fmu = int(round(t_end / am.FE_STEP))
