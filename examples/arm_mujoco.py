@@ -92,7 +92,10 @@ Experiments (``EXPERIMENTS``): ``flex_hold`` (the controller above, 1 s),
 ``hold`` (open loop, constant command 0.4 at 90 deg with a 1 rad/s kick: the
 same command for every step size) and ``hold_stiff`` (``hold`` with a 5 cm
 fibre, L0 = 0.05 m, in series with a rigid tendon, ~5x stiffer; valid near
-90 deg only). Measured results: docs/coupling.md.
+90 deg only) and ``passive_stiff`` (that fibre relaxed and stretched 25 % at
+0 deg: a purely elastic muscle swinging the forearm, where the zero-order
+hold pumps energy). ``--param alpha=100`` (any Real FMU parameter) applies
+on top of an experiment. Measured results: docs/coupling.md.
 
 The FE muscle (``--model fe``)
 ------------------------------
