@@ -212,9 +212,12 @@ class Muscle:
 
     # -- set-up -------------------------------------------------------------
     def set_parameter(self, name, value):
-        """Set a parameter (Real, or Boolean for ``activation_dynamics``)."""
-        if self.loaded.variables[name].type == "Boolean":
+        """Set a parameter (Real, Integer or Boolean)."""
+        kind = self.loaded.variables[name].type
+        if kind == "Boolean":
             self.slave.setBoolean([self.vr[name]], [bool(value)])
+        elif kind == "Integer":
+            self.slave.setInteger([self.vr[name]], [int(value)])
         else:
             self.slave.setReal([self.vr[name]], [float(value)])
 

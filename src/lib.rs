@@ -8,7 +8,7 @@
 //! - [`fmus`]: the FMUs: models with their variable tables.
 //!
 //! The cdylib exports the C API of exactly one FMU, chosen by a Cargo feature
-//! (`export-hill1d`); `fmu_build` builds it once per FMU.
+//! (`export-hill1d`, `export-hfe`); `fmu_build` builds it once per FMU.
 
 pub mod fe;
 pub mod fmi2;
@@ -16,5 +16,11 @@ pub mod fmus;
 pub mod law;
 pub mod specimen;
 
+#[cfg(all(feature = "export-hill1d", feature = "export-hfe"))]
+compile_error!("enable exactly one export-* feature: the cdylib exports one FMU");
+
 #[cfg(feature = "export-hill1d")]
 crate::export_fmi2!(crate::fmus::hill1d::Hill1D);
+
+#[cfg(feature = "export-hfe")]
+crate::export_fmi2!(crate::fmus::hillfe::HillFE);

@@ -4,6 +4,7 @@
 
 use hill_muscle::fmi2::model_description::{guid, model_description, validate_table};
 use hill_muscle::fmus::hill1d::Hill1D;
+use hill_muscle::fmus::hillfe::HillFE;
 
 fn check_committed(id: &str, generated: &str) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -90,4 +91,26 @@ fn hill1d_model_structure_has_the_real_dependencies() {
             "force at t0 does not depend on {name}"
         );
     }
+}
+
+#[test]
+fn hillfe_model_description_is_committed_and_valid() {
+    validate_table::<HillFE>().expect("HillMuscleFE variable table follows FMI 2.0 rules");
+    let xml = model_description::<HillFE>();
+    assert!(xml.contains(&format!("guid=\"{}\"", guid::<HillFE>())));
+    for name in [
+        "activation",
+        "length",
+        "force",
+        "stress",
+        "volume_ratio_min",
+        "volume_ratio_max",
+        "max_fibre_stretch",
+        "newton_iterations",
+        "n_axial",
+        "n_radial",
+    ] {
+        assert!(xml.contains(&format!("name=\"{name}\"")), "{name}");
+    }
+    check_committed("HillMuscleFE", &xml);
 }

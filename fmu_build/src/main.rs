@@ -31,12 +31,26 @@ struct FmuSpec {
 }
 
 fn fmus() -> Vec<FmuSpec> {
-    vec![FmuSpec {
-        id: "HillMuscle1D",
-        feature: "export-hill1d",
-        model_description: model_description::<fmus::hill1d::Hill1D>,
-        documentation: || documentation_html::<fmus::hill1d::Hill1D>(fmus::hill1d::LAW_HTML),
-    }]
+    vec![
+        FmuSpec {
+            id: "HillMuscle1D",
+            feature: "export-hill1d",
+            model_description: model_description::<fmus::hill1d::Hill1D>,
+            documentation: || documentation_html::<fmus::hill1d::Hill1D>(fmus::hill1d::LAW_HTML),
+        },
+        FmuSpec {
+            id: "HillMuscleFE",
+            feature: "export-hfe",
+            model_description: model_description::<fmus::hillfe::HillFE>,
+            documentation: || {
+                documentation_html::<fmus::hillfe::HillFE>(&format!(
+                    "{}{}",
+                    fmus::hillfe::FE_HTML,
+                    fmus::hill1d::LAW_HTML
+                ))
+            },
+        },
+    ]
 }
 
 fn workspace_root() -> PathBuf {

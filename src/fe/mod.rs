@@ -2,5 +2,7 @@
 //! paper's fusiform specimen and the locking-free tetrahedron (isochoric
 //! element response plus an average-nodal-pressure volumetric term).
 
+pub mod assembly;
 pub mod element;
 pub mod mesh;
+pub mod muscle;

@@ -458,7 +458,7 @@ pub fn validate_table<M: Model>() -> Result<(), Vec<String>> {
 /// causality/variability/initial combinations (FMI 2.0 section 2.2.7); start
 /// value present exactly when required (initial exact/approx or input) and
 /// absent for calculated/independent; `min <= start <= max`; no NaN; units
-/// declared; `depends_on` names exist, only on outputs and calculated
+/// declared; continuous variability only for Reals; `depends_on` names exist, only on outputs and calculated
 /// parameters, and name inputs or variables with `initial = "exact"`;
 /// default experiment `start < stop`, `step > 0`; at most one independent
 /// variable.
@@ -516,6 +516,12 @@ pub fn validate<V>(info: &ModelInfo, vars: &[ScalarVariable<V>]) -> Result<(), V
         }
         if let Err(m) = combination_valid(v) {
             err(m);
+        }
+        // FMI 2.0 section 2.2.7: only Real variables may be continuous.
+        if v.variability == super::model::Variability::Continuous
+            && !matches!(v.ty, VarType::Real { .. })
+        {
+            err("only Real variables may have variability continuous".into());
         }
         let initial = effective_initial(v);
         let start_required = v.causality == Causality::Input

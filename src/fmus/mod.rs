@@ -1,2 +1,4 @@
 //! The FMUs: models with their variable tables.
+pub mod common;
 pub mod hill1d;
+pub mod hillfe;

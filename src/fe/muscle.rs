@@ -1,0 +1,987 @@
+//! The lumped 3D finite-element muscle: quasi-static equilibrium of a
+//! tetrahedral mesh under the law, one end held, the other moved along the
+//! axis (issue 3; the paper's test specimen, MODEL_NOTES "Co-simulation
+//! conventions" for the inputs).
+//!
+//! # Problem
+//!
+//! Find node positions x with R(x) = ∂Π/∂x = 0 at every free degree of
+//! freedom, Π the mesh energy of [`crate::fe::element`] (isochoric law per
+//! element, average-nodal-pressure volumetric term per node), at the end of
+//! each step: the CE–SEE history of every element advances with the step
+//! (`FibreRate::Step { h }`, backward Euler as in the 1D model) and is
+//! committed only when the step converges. Inertia is neglected (as in the
+//! paper).
+//!
+//! # Boundary conditions ([`Ends`])
+//!
+//! - `Clamped` (the paper's test): every node of the end face x = 0 fixed;
+//!   every node of the face x = L0 moved along the axis by L − L0 and held
+//!   laterally.
+//! - `Sliding` (homogeneous patch tests): both end faces held only axially
+//!   (x = 0 and x = L), plus the three lateral rigid-body modes removed at the
+//!   fixed face (the axis node's y and z, the z of the ring node on the +y
+//!   axis) — a straight bar then deforms homogeneously.
+//!
+//! The muscle force is the axial reaction on the moved face, Σ R_x over its
+//! nodes (tension positive).
+//!
+//! # Solver
+//!
+//! Newton's method with the consistent tangent of the law (including the
+//! CE–SEE history's dλs/dλ̄f, [`crate::law::stress::LawPoint`]) assembled
+//! into a sparse matrix ([`crate::fe::assembly`]) and solved by sparse
+//! Cholesky (LU when the tangent is indefinite), with a backtracking line
+//! search on the residual norm (a trial that inverts an element is
+//! rejected). Start: the linearised response from the last equilibrium
+//! ([`Discretization::step`]). Converged when the largest free
+//! residual is below [`RESIDUAL_TOLERANCE`] times the force scale, or the
+//! Newton correction below [`INCREMENT_TOLERANCE`] · L0. When a step does not
+//! converge it is split into 2, 4, … [`MAX_SUBSTEPS`] substeps (length
+//! linear in time, activation level exact); if that fails too, the step is
+//! refused and nothing has changed.
+
+use std::sync::Arc;
+
+use nalgebra::{SMatrix, Vector3};
+
+use crate::fe::assembly::{Factor, Pattern};
+use crate::fe::element::{nodal_volumes, IsochoricElement, TetReference};
+use crate::fe::mesh::{revolve_with, FibreLayout, Fusiform, Mesh, Resolution, Section};
+use crate::law::volumetric::volumetric_derivatives;
+use crate::law::{FibreHistory, FibreRate, Params};
+
+/// Newton iterations per (sub)step before it counts as not converged.
+pub const MAX_NEWTON_ITERATIONS: usize = 25;
+/// Largest number of substeps a step is split into before it is refused.
+pub const MAX_SUBSTEPS: usize = 64;
+/// Converged when max |R_free| ≤ this × the force scale (module docs).
+pub const RESIDUAL_TOLERANCE: f64 = 1e-10;
+/// … or when the Newton correction is below this × L0 (round-off level).
+pub const INCREMENT_TOLERANCE: f64 = 1e-13;
+/// Smallest line-search step before a Newton iteration counts as failed.
+const MIN_LINE_SEARCH: f64 = 1.0 / 256.0;
+
+/// How the end faces are held (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ends {
+    Clamped,
+    Sliding,
+}
+
+/// Everything fixed once the geometry, mesh and boundary conditions are
+/// chosen: shared (behind an `Arc`) by every copy of a muscle's state.
+#[derive(Debug)]
+pub struct Discretization {
+    pub mesh: Mesh,
+    /// Rest length L0 (the mesh length).
+    pub l0: f64,
+    pub ends: Ends,
+    references: Vec<TetReference>,
+    /// Reference nodal volumes V_a.
+    nodal_reference: Vec<f64>,
+    /// Per node a: the elements around it and, per element node, its index
+    /// in a's patch.
+    node_elements: Vec<Vec<(u32, [u8; 4])>>,
+    pub pattern: Pattern,
+    /// Dofs prescribed by the moved face's axial motion.
+    moved_axial: Vec<usize>,
+    /// Mean reference cross-section V/L0 of the mesh.
+    mean_area: f64,
+    /// The nominal mean cross-section the geometry was built for (V0/L0 of
+    /// the exact profile; the mesh's differs by its volume error).
+    pub area: f64,
+    /// Fibre layout the mesh was built with.
+    pub fibres: FibreLayout,
+}
+
+impl Discretization {
+    /// The paper's fusiform muscle scaled to rest length `l0` and mean
+    /// cross-section `area` (= V0/L0), meshed at `resolution` with
+    /// equal-area cross-sections.
+    pub fn fusiform(
+        l0: f64,
+        area: f64,
+        resolution: Resolution,
+        fibres: FibreLayout,
+        ends: Ends,
+    ) -> Result<Discretization, String> {
+        let radial = (area / crate::specimen::MEAN_AREA).sqrt();
+        let profile = Fusiform {
+            length: l0,
+            r_end: crate::specimen::END_RADIUS * radial,
+            r_mid: crate::specimen::MID_RADIUS * radial,
+        };
+        let mut d = Discretization::new(
+            revolve_with(&profile, resolution, fibres, Section::EqualArea),
+            ends,
+        )?;
+        d.area = area;
+        d.fibres = fibres;
+        Ok(d)
+    }
+
+    /// From a mesh (its `fixed_face` at x = 0, `moved_face` at x = length).
+    pub fn new(mesh: Mesh, ends: Ends) -> Result<Discretization, String> {
+        let n = mesh.nodes.len();
+        let references: Vec<TetReference> = (0..mesh.tets.len())
+            .map(|e| TetReference::new(&mesh.tet_points(e)))
+            .collect();
+        if references
+            .iter()
+            .any(|r| r.volume.is_nan() || r.volume <= 0.0)
+        {
+            return Err("the mesh has an element of non-positive volume".into());
+        }
+        let element_volumes: Vec<f64> = references.iter().map(|r| r.volume).collect();
+        let nodal_reference = nodal_volumes(n, &mesh.tets, &element_volumes);
+        let mut prescribed = vec![false; 3 * n];
+        let mut moved_axial = Vec::new();
+        match ends {
+            Ends::Clamped => {
+                for &a in mesh.fixed_face.iter().chain(&mesh.moved_face) {
+                    prescribed[3 * a..3 * a + 3].fill(true);
+                }
+            }
+            Ends::Sliding => {
+                for &a in mesh.fixed_face.iter().chain(&mesh.moved_face) {
+                    prescribed[3 * a] = true;
+                }
+                // The axis node (disc centre, first in disc order) and the
+                // first ring node (on the +y axis, η = (1/n_radial, 0)).
+                let centre = mesh.fixed_face[0];
+                prescribed[3 * centre + 1] = true;
+                prescribed[3 * centre + 2] = true;
+                let ring = mesh.fixed_face[1];
+                prescribed[3 * ring + 2] = true;
+            }
+        }
+        for &a in &mesh.moved_face {
+            moved_axial.push(3 * a);
+        }
+        let pattern = Pattern::new(n, &mesh.tets, prescribed)?;
+        let node_elements = {
+            let mut v: Vec<Vec<(u32, [u8; 4])>> = vec![Vec::new(); n];
+            for (e, tet) in mesh.tets.iter().enumerate() {
+                for &a in tet {
+                    let patch = &pattern.patches[a];
+                    let local =
+                        tet.map(|b| patch.binary_search(&(b as u32)).expect("in patch") as u8);
+                    v[a].push((e as u32, local));
+                }
+            }
+            v
+        };
+        let l0 = mesh.length;
+        let mean_area = mesh.volume() / l0;
+        Ok(Discretization {
+            l0,
+            ends,
+            references,
+            nodal_reference,
+            node_elements,
+            pattern,
+            moved_axial,
+            mean_area,
+            area: mean_area,
+            fibres: FibreLayout::Axial,
+            mesh,
+        })
+    }
+
+    pub fn n_nodes(&self) -> usize {
+        self.mesh.nodes.len()
+    }
+
+    pub fn n_elements(&self) -> usize {
+        self.mesh.tets.len()
+    }
+
+    /// Reference volume of each element.
+    pub fn element_reference_volumes(&self) -> impl Iterator<Item = f64> + '_ {
+        self.references.iter().map(|r| r.volume)
+    }
+
+    /// Reference volume of the mesh.
+    pub fn reference_volume(&self) -> f64 {
+        self.references.iter().map(|r| r.volume).sum()
+    }
+
+    /// The reference positions, flattened.
+    pub fn reference_positions(&self) -> Vec<f64> {
+        self.mesh
+            .nodes
+            .iter()
+            .flat_map(|p| [p.x, p.y, p.z])
+            .collect()
+    }
+
+    /// Set the prescribed dofs for the muscle length `length`.
+    fn apply_prescribed(&self, x: &mut [f64], length: f64) {
+        let p = &self.pattern.prescribed;
+        for a in 0..self.n_nodes() {
+            let x0 = self.mesh.nodes[a];
+            for i in 0..3 {
+                if p[3 * a + i] {
+                    x[3 * a + i] = x0[i];
+                }
+            }
+        }
+        for &d in &self.moved_axial {
+            x[d] = length;
+        }
+    }
+
+    fn element_points(&self, x: &[f64], e: usize) -> [Vector3<f64>; 4] {
+        self.mesh.tets[e].map(|a| Vector3::new(x[3 * a], x[3 * a + 1], x[3 * a + 2]))
+    }
+
+    /// Evaluate forces (and the tangent) at positions `x` (module docs of
+    /// [`crate::fe::element`]). Fails on an inverted element or a non-finite
+    /// value.
+    pub fn evaluate(
+        &self,
+        p: &Params,
+        x: &[f64],
+        activation: f64,
+        start: &[FibreHistory],
+        rate: FibreRate,
+        tangent: bool,
+    ) -> Result<Evaluation, String> {
+        let ne = self.n_elements();
+        let nn = self.n_nodes();
+        // Pass 1: element volumes, nodal volume ratios and pressures.
+        let mut grads = Vec::with_capacity(ne);
+        let mut volumes = Vec::with_capacity(ne);
+        for e in 0..ne {
+            let pts = self.element_points(x, e);
+            let (g, v) = crate::fe::element::shape_gradients(&pts);
+            let j = v / self.references[e].volume;
+            if !(j > 0.0 && j.is_finite()) {
+                return Err(format!("element {e} inverted or degenerate (J = {j:e})"));
+            }
+            grads.push(g);
+            volumes.push(v);
+        }
+        let current_nodal = nodal_volumes(nn, &self.mesh.tets, &volumes);
+        let mut pressure = vec![0.0; nn];
+        let mut bulk = vec![0.0; nn];
+        let mut j_nodal_range = (f64::INFINITY, f64::NEG_INFINITY);
+        for a in 0..nn {
+            let j = current_nodal[a] / self.nodal_reference[a];
+            let (uj, ujj) = volumetric_derivatives(j, p.d_comp);
+            pressure[a] = uj;
+            bulk[a] = ujj;
+            j_nodal_range = (j_nodal_range.0.min(j), j_nodal_range.1.max(j));
+        }
+        // Pass 2: element forces and stiffness.
+        let mut forces = vec![0.0; 3 * nn];
+        let mut d_activation = vec![0.0; 3 * nn];
+        let mut values = if tangent {
+            Some(self.pattern.zeros())
+        } else {
+            None
+        };
+        let mut elements = Vec::with_capacity(ne);
+        for e in 0..ne {
+            let tet = &self.mesh.tets[e];
+            let pts = self.element_points(x, e);
+            let reference = &self.references[e];
+            let el = IsochoricElement::new(
+                p,
+                reference,
+                &pts,
+                &self.mesh.fibre[e],
+                activation,
+                &start[e],
+                rate,
+            );
+            let p_bar = tet.iter().map(|&a| pressure[a]).sum::<f64>() / 4.0;
+            let (g, v) = (&grads[e], volumes[e]);
+            let dtau_da = el.point.kirchhoff_activation_derivative();
+            for (b, &node) in tet.iter().enumerate() {
+                let f = el.forces[b] + g[b] * (p_bar * v);
+                let fa = dtau_da * el.grad[b] * reference.volume;
+                for i in 0..3 {
+                    forces[3 * node + i] += f[i];
+                    d_activation[3 * node + i] += fa[i];
+                }
+            }
+            if let Some(values) = values.as_mut() {
+                let mut k: SMatrix<f64, 12, 12> = el.stiffness(reference.volume);
+                // p̄_e v_e (∇N_b ⊗ ∇N_c − ∇N_c ⊗ ∇N_b).
+                for b in 0..4 {
+                    for c in 0..4 {
+                        let h = (g[b] * g[c].transpose() - g[c] * g[b].transpose()) * (p_bar * v);
+                        for i in 0..3 {
+                            for j in 0..3 {
+                                k[(3 * b + i, 3 * c + j)] += h[(i, j)];
+                            }
+                        }
+                    }
+                }
+                self.pattern.add_element(values, e, tet, &k);
+            }
+            elements.push(ElementState {
+                lambda_f: el.point.lambda_f,
+                j: el.point.j,
+                j_assumed: tet
+                    .iter()
+                    .map(|&a| current_nodal[a] / self.nodal_reference[a])
+                    .sum::<f64>()
+                    / 4.0,
+                history: el.point.fibre.history,
+                sigma_see: el.point.fibre.sigma_see,
+            });
+        }
+        if let Some(values) = values.as_mut() {
+            // Σ_a (U_J''(J_a) / V_a) ∂v_a/∂x ⊗ ∂v_a/∂x, ∂v_a/∂x = Σ_{e∋a} (v_e/4) ∇N.
+            let mut g = Vec::new();
+            for (a, (&ujj, v_ref)) in bulk.iter().zip(&self.nodal_reference).enumerate() {
+                g.clear();
+                g.resize(self.pattern.patches[a].len(), Vector3::zeros());
+                for &(e, local) in &self.node_elements[a] {
+                    let (ge, v) = (&grads[e as usize], volumes[e as usize]);
+                    for b in 0..4 {
+                        g[local[b] as usize] += ge[b] * (v / 4.0);
+                    }
+                }
+                self.pattern.add_patch_outer(values, a, &g, ujj / v_ref);
+            }
+        }
+        if forces.iter().any(|f| !f.is_finite()) {
+            return Err("a non-finite nodal force".into());
+        }
+        Ok(Evaluation {
+            forces,
+            d_activation,
+            tangent: values,
+            elements,
+            volume: volumes.iter().sum(),
+            j_nodal_range,
+        })
+    }
+
+    /// Euclidean norm of the residual over the free dofs.
+    fn residual_norm2(&self, forces: &[f64]) -> f64 {
+        forces
+            .iter()
+            .zip(&self.pattern.prescribed)
+            .filter(|(_, &p)| !p)
+            .map(|(f, _)| f * f)
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Largest residual over the free dofs.
+    fn residual_norm(&self, forces: &[f64]) -> f64 {
+        forces
+            .iter()
+            .zip(&self.pattern.prescribed)
+            .filter(|(_, &p)| !p)
+            .fold(0.0, |m, (f, _)| m.max(f.abs()))
+    }
+
+    /// Force scale of the convergence test: the largest prescribed-dof force,
+    /// at least 1e-6 c · A (the matrix stiffness c on the mean section: a
+    /// force far below any the law produces at a measurable strain).
+    fn force_scale(&self, p: &Params, forces: &[f64]) -> f64 {
+        forces
+            .iter()
+            .zip(&self.pattern.prescribed)
+            .filter(|(_, &pr)| pr)
+            .fold(1e-6 * p.c * self.mean_area, |m, (f, _)| m.max(f.abs()))
+    }
+
+    /// The axial reaction on the moved face.
+    pub fn reaction(&self, forces: &[f64]) -> f64 {
+        self.moved_axial.iter().map(|&d| forces[d]).sum()
+    }
+
+    /// Newton's method from `x` (prescribed dofs already at their values).
+    pub fn solve(
+        &self,
+        p: &Params,
+        mut x: Vec<f64>,
+        activation: f64,
+        start: &[FibreHistory],
+        rate: FibreRate,
+    ) -> Result<Solution, String> {
+        let mut ev = self.evaluate(p, &x, activation, start, rate, true)?;
+        let mut r2 = self.residual_norm2(&ev.forces);
+        for iteration in 0..=MAX_NEWTON_ITERATIONS {
+            let tol = RESIDUAL_TOLERANCE * self.force_scale(p, &ev.forces);
+            let r = self.residual_norm(&ev.forces);
+            if r <= tol {
+                return Ok(Solution {
+                    x,
+                    evaluation: ev,
+                    iterations: iteration,
+                });
+            }
+            if iteration == MAX_NEWTON_ITERATIONS {
+                break;
+            }
+            let factor = self
+                .pattern
+                .factorize(ev.tangent.as_ref().expect("tangent"))?;
+            let mut dx: Vec<f64> = ev
+                .forces
+                .iter()
+                .zip(&self.pattern.prescribed)
+                .map(|(f, &pr)| if pr { 0.0 } else { -f })
+                .collect();
+            factor.solve_in_place(&mut dx);
+            let step = dx.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+            let mut alpha = 1.0;
+            loop {
+                let trial: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
+                if let Ok(t) = self.evaluate(p, &trial, activation, start, rate, true) {
+                    let rt = self.residual_norm2(&t.forces);
+                    if rt <= (1.0 - 1e-4 * alpha) * r2
+                        || alpha * step <= INCREMENT_TOLERANCE * self.l0
+                    {
+                        x = trial;
+                        ev = t;
+                        r2 = rt;
+                        break;
+                    }
+                }
+                alpha *= 0.5;
+                if alpha < MIN_LINE_SEARCH {
+                    return Err(format!(
+                        "Newton iteration {iteration}: no decrease of the residual {r2:e} N along the Newton direction"
+                    ));
+                }
+            }
+            if alpha * step <= INCREMENT_TOLERANCE * self.l0 {
+                return Ok(Solution {
+                    x,
+                    evaluation: ev,
+                    iterations: iteration + 1,
+                });
+            }
+        }
+        Err(format!(
+            "no convergence in {MAX_NEWTON_ITERATIONS} Newton iterations (residual {r2:e} N)"
+        ))
+    }
+
+    /// Derivatives of the reaction force at a converged solution: with
+    /// respect to the muscle length (all moved-face axial dofs moving
+    /// together) and to the activation level, from the converged tangent
+    /// (one factorisation, two solves):
+    /// dF/dL = eᵀ K (δ + Δx), K_ff Δx_f = −(K δ)_f;
+    /// dF/da = eᵀ (∂f/∂a + K Δx), K_ff Δx_f = −(∂f/∂a)_f;
+    /// e selects the moved-face axial dofs, δ moves them by 1.
+    pub fn force_derivatives(&self, ev: &Evaluation) -> Result<(f64, f64), String> {
+        let values = ev.tangent.as_ref().ok_or("no tangent")?;
+        let factor: Factor = self.pattern.factorize(values)?;
+        let n = 3 * self.n_nodes();
+        let mut delta = vec![0.0; n];
+        for &d in &self.moved_axial {
+            delta[d] = 1.0;
+        }
+        let mut kd = vec![0.0; n];
+        self.pattern.multiply(values, &delta, &mut kd);
+        let free = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(&self.pattern.prescribed)
+                .map(|(x, &pr)| if pr { 0.0 } else { -x })
+                .collect()
+        };
+        let mut dx = free(&kd);
+        factor.solve_in_place(&mut dx);
+        for &d in &self.moved_axial {
+            dx[d] = 1.0;
+        }
+        let mut kx = vec![0.0; n];
+        self.pattern.multiply(values, &dx, &mut kx);
+        let df_dl = self.reaction(&kx);
+        let mut dxa = free(&ev.d_activation);
+        factor.solve_in_place(&mut dxa);
+        self.pattern.multiply(values, &dxa, &mut kx);
+        let df_da = self.reaction(&ev.d_activation) + self.reaction(&kx);
+        Ok((df_dl, df_da))
+    }
+
+    /// One step (or substep) to muscle length `length` from the converged
+    /// positions `x`, with the activation level going from `activation_start`
+    /// to `activation` at its end.
+    ///
+    /// Start: the linearised response from `x` — one Newton iteration at the
+    /// old positions in which the prescribed increment δ (the moved face's
+    /// axial motion) enters the linearisation, K_ff Δx_f = −(R_f + K_fp δ),
+    /// with K the tangent at the old positions and the old activation level
+    /// (an equilibrium's: pressures physical, the isochoric stress balanced)
+    /// and R the residual with the new level. Moving the face first would
+    /// start from pressures of order (ΔL/L)·2/D next to the face; the tangent
+    /// at the new level but old positions is indefinite when the level rises
+    /// (fibre tension not yet balanced by pressure: the lateral initial-stress
+    /// stiffness −T/3 exceeds the matrix's shear stiffness).
+    #[allow(clippy::too_many_arguments)]
+    pub fn step(
+        &self,
+        p: &Params,
+        x: &[f64],
+        length: f64,
+        activation_start: f64,
+        activation: f64,
+        start: &[FibreHistory],
+        rate: FibreRate,
+    ) -> Result<Solution, String> {
+        // The tangent at the old positions with the activation level the
+        // step starts from (there the isochoric stress is balanced by the
+        // pressure, so the tangent is that of an equilibrium); the residual
+        // with the new level.
+        let lin = self.evaluate(p, x, activation_start, start, rate, true)?;
+        let values = lin.tangent.as_ref().expect("tangent");
+        let forces = if activation == activation_start {
+            lin.forces.clone()
+        } else {
+            self.evaluate(p, x, activation, start, rate, false)?.forces
+        };
+        let n = x.len();
+        let mut target = x.to_vec();
+        self.apply_prescribed(&mut target, length);
+        let delta: Vec<f64> = target.iter().zip(x).map(|(t, a)| t - a).collect();
+        let mut k_delta = vec![0.0; n];
+        self.pattern.multiply(values, &delta, &mut k_delta);
+        let mut dx: Vec<f64> = (0..n)
+            .map(|i| {
+                if self.pattern.prescribed[i] {
+                    0.0
+                } else {
+                    -(forces[i] + k_delta[i])
+                }
+            })
+            .collect();
+        let factor = self.pattern.factorize(values)?;
+        factor.solve_in_place(&mut dx);
+        let predicted: Vec<f64> = (0..n)
+            .map(|i| {
+                if self.pattern.prescribed[i] {
+                    target[i]
+                } else {
+                    x[i] + dx[i]
+                }
+            })
+            .collect();
+        match self.solve(p, predicted, activation, start, rate) {
+            Ok(s) => Ok(Solution {
+                iterations: s.iterations + 1,
+                ..s
+            }),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+/// What an evaluation keeps per element for outputs and commits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ElementState {
+    pub lambda_f: f64,
+    /// det F_e of the linear element (not what the volume constraint acts on).
+    pub j: f64,
+    /// The volume ratio the formulation constrains: the mean of the element's
+    /// nodal J_a (whose pressures p̄_e the element carries).
+    pub j_assumed: f64,
+    pub history: FibreHistory,
+    pub sigma_see: f64,
+}
+
+/// Forces and tangent at one configuration.
+#[derive(Clone, Debug)]
+pub struct Evaluation {
+    /// ∂Π/∂x, length 3 n (the reactions at prescribed dofs).
+    pub forces: Vec<f64>,
+    /// ∂forces/∂a at fixed x.
+    pub d_activation: Vec<f64>,
+    /// Full (unconstrained) tangent values on the pattern.
+    pub tangent: Option<Vec<f64>>,
+    pub elements: Vec<ElementState>,
+    /// Current mesh volume.
+    pub volume: f64,
+    /// Range of the nodal volume ratios J_a.
+    pub j_nodal_range: (f64, f64),
+}
+
+/// A converged equilibrium.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    pub x: Vec<f64>,
+    pub evaluation: Evaluation,
+    pub iterations: usize,
+}
+
+/// The muscle's state between steps (shared discretization + per-instance
+/// fields): what [`Muscle::advance`] reads and commits.
+#[derive(Clone, Debug)]
+pub struct Muscle {
+    pub disc: Arc<Discretization>,
+    /// Converged positions, flattened.
+    pub x: Vec<f64>,
+    /// Committed fibre history per element.
+    pub history: Vec<FibreHistory>,
+    /// Muscle length of the converged state.
+    pub length: f64,
+}
+
+/// Result of [`Muscle::advance`].
+#[derive(Clone, Debug)]
+pub struct Advance {
+    pub muscle: Muscle,
+    /// The last substep's converged solution.
+    pub solution: Solution,
+    /// Its starting history and rate (what its tangent was formed with).
+    pub start: Vec<FibreHistory>,
+    pub rate: FibreRate,
+    /// Newton iterations summed over the substeps.
+    pub iterations: usize,
+    pub substeps: usize,
+}
+
+impl Muscle {
+    /// The muscle at rest (reference positions, unloaded history).
+    pub fn at_rest(disc: Arc<Discretization>) -> Muscle {
+        let x = disc.reference_positions();
+        let n = disc.n_elements();
+        let l0 = disc.l0;
+        Muscle {
+            disc,
+            x,
+            history: vec![FibreHistory::REST; n],
+            length: l0,
+        }
+    }
+
+    /// Isometric equilibrium at `length` and activation level `activation`
+    /// (initialization): length and level approached together in 1, 2, 4, …
+    /// increments from the rest state (path-independent: the isometric fibre
+    /// has no rate, so the increments only guide Newton).
+    pub fn isometric(
+        disc: Arc<Discretization>,
+        p: &Params,
+        length: f64,
+        activation: f64,
+    ) -> Result<(Muscle, Solution), String> {
+        let rest = Muscle::at_rest(disc.clone());
+        let mut last_error = String::new();
+        let mut n = 1;
+        while n <= MAX_SUBSTEPS {
+            let mut x = rest.x.clone();
+            let mut result = None;
+            for i in 1..=n {
+                let l = rest.length + (length - rest.length) * i as f64 / n as f64;
+                // Length and activation level ramped together from rest.
+                let a_start = activation * (i - 1) as f64 / n as f64;
+                let a = activation * i as f64 / n as f64;
+                match disc.step(p, &x, l, a_start, a, &rest.history, FibreRate::Isometric) {
+                    Ok(s) => {
+                        x = s.x.clone();
+                        result = Some(s);
+                    }
+                    Err(e) => {
+                        last_error = e;
+                        result = None;
+                        break;
+                    }
+                }
+            }
+            if let Some(s) = result {
+                let history = s.evaluation.elements.iter().map(|e| e.history).collect();
+                return Ok((
+                    Muscle {
+                        disc,
+                        x: s.x.clone(),
+                        history,
+                        length,
+                    },
+                    s,
+                ));
+            }
+            n *= 2;
+        }
+        Err(format!(
+            "no isometric equilibrium at length {length} m in up to {MAX_SUBSTEPS} increments: {last_error}"
+        ))
+    }
+
+    /// Advance over a step of length `h` to muscle length `length`, the
+    /// activation level following `activation(τ)` for τ in [0, h] (exact
+    /// dynamics). Tries 1, 2, 4, … [`MAX_SUBSTEPS`] substeps (length linear
+    /// in τ); `Err` with the last failure when none converges (self unchanged).
+    pub fn advance(
+        &self,
+        p: &Params,
+        length: f64,
+        h: f64,
+        activation: &dyn Fn(f64) -> f64,
+    ) -> Result<Advance, String> {
+        let disc = &self.disc;
+        let mut last_error = String::new();
+        let mut n = 1;
+        while n <= MAX_SUBSTEPS {
+            let hs = h / n as f64;
+            let mut x = self.x.clone();
+            let mut hist = self.history.clone();
+            let mut iterations = 0;
+            let mut done = None;
+            for i in 1..=n {
+                let tau = h * i as f64 / n as f64;
+                let l = self.length + (length - self.length) * i as f64 / n as f64;
+                let rate = FibreRate::Step { h: hs };
+                let a_start = activation(h * (i - 1) as f64 / n as f64);
+                match disc.step(p, &x, l, a_start, activation(tau), &hist, rate) {
+                    Ok(s) => {
+                        iterations += s.iterations;
+                        let new_hist: Vec<FibreHistory> =
+                            s.evaluation.elements.iter().map(|e| e.history).collect();
+                        if let Some((e, err)) =
+                            s.evaluation
+                                .elements
+                                .iter()
+                                .enumerate()
+                                .find_map(|(e, el)| {
+                                    el.history
+                                        .check_physical(p.k, el.lambda_f)
+                                        .err()
+                                        .map(|m| (e, m))
+                                })
+                        {
+                            last_error = format!("element {e}: {err}");
+                            done = None;
+                            break;
+                        }
+                        x = s.x.clone();
+                        let start = std::mem::replace(&mut hist, new_hist);
+                        done = Some((s, start, rate));
+                    }
+                    Err(e) => {
+                        last_error = e;
+                        done = None;
+                        break;
+                    }
+                }
+            }
+            if let Some((solution, start, rate)) = done {
+                return Ok(Advance {
+                    muscle: Muscle {
+                        disc: disc.clone(),
+                        x,
+                        history: hist,
+                        length,
+                    },
+                    solution,
+                    start,
+                    rate,
+                    iterations,
+                    substeps: n,
+                });
+            }
+            n *= 2;
+        }
+        Err(format!(
+            "the step to length {length} m did not converge, even in {MAX_SUBSTEPS} substeps: {last_error}"
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fe::mesh::cylinder;
+    use crate::law::{solve_uniaxial, Uniaxial};
+
+    fn patch(n_axial: usize, n_radial: usize) -> Arc<Discretization> {
+        Arc::new(
+            Discretization::new(cylinder(0.01, 0.003, n_axial, n_radial), Ends::Sliding).unwrap(),
+        )
+    }
+
+    /// The FE force on a sliding-end cylinder vs the 1D reduction's nominal
+    /// stress × the cylinder's mesh cross-section (the inscribed polygon).
+    fn area_of(d: &Discretization) -> f64 {
+        d.reference_volume() / d.l0
+    }
+
+    #[test]
+    fn homogeneous_patch_reproduces_the_uniaxial_reduction_passive() {
+        let p = Params::default();
+        let d = patch(3, 2);
+        for stretch in [0.9, 1.05, 1.2] {
+            let (_, s) = Muscle::isometric(d.clone(), &p, stretch * d.l0, 0.0).unwrap();
+            let f = d.reaction(&s.evaluation.forces);
+            let u: Uniaxial = solve_uniaxial(
+                &p,
+                stretch,
+                0.0,
+                &FibreHistory::REST,
+                FibreRate::Isometric,
+                1.0,
+            )
+            .unwrap();
+            let f1 = u.nominal_stress() * area_of(&d);
+            assert!(
+                ((f - f1) / f1).abs() < 1e-6,
+                "stretch {stretch}: FE {f} vs 1D {f1} (rel {:e})",
+                (f - f1) / f1
+            );
+            // Homogeneous: every element has the same J and fibre stretch.
+            let (jmin, jmax) = s
+                .evaluation
+                .elements
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), e| {
+                    (a.min(e.j), b.max(e.j))
+                });
+            assert!((jmax - jmin) < 1e-9, "{jmin} {jmax}");
+            assert!(((jmin - u.j) / u.j).abs() < 1e-8, "{jmin} vs {}", u.j);
+        }
+    }
+
+    /// Active patch: a sequence of steps with the activation rising while
+    /// the bar is stretched and released (CE–SEE history advancing in every
+    /// element) gives the 1D reduction's force at every step.
+    #[test]
+    fn homogeneous_patch_reproduces_the_uniaxial_reduction_active() {
+        let p = Params::default();
+        let d = patch(2, 1);
+        let (mut m, _) = Muscle::isometric(d.clone(), &p, d.l0, 0.0).unwrap();
+        let mut hist = FibreHistory::REST;
+        let mut q = 1.0;
+        let h = 1e-3;
+        let mut a_prev = 0.0;
+        for (k, stretch) in [1.0, 1.02, 1.05, 1.08, 1.06, 1.03].into_iter().enumerate() {
+            let a = (0.2 * (k + 1) as f64).min(1.0);
+            let a0 = a_prev;
+            let r = m
+                .advance(&p, stretch * d.l0, h, &|tau| a0 + (a - a0) * tau / h)
+                .unwrap();
+            let f = d.reaction(&r.solution.evaluation.forces);
+            let u = solve_uniaxial(&p, stretch, a, &hist, FibreRate::Step { h }, q).unwrap();
+            let f1 = u.nominal_stress() * area_of(&d);
+            assert!(
+                ((f - f1) / f1).abs() < 1e-6,
+                "step {k}: FE {f} vs 1D {f1} (rel {:e})",
+                (f - f1) / f1
+            );
+            let e0 = r.solution.evaluation.elements[0];
+            assert!((e0.history.lambda_s - u.fibre.history.lambda_s).abs() < 1e-9);
+            hist = u.fibre.history;
+            q = u.q;
+            a_prev = a;
+            m = r.muscle;
+        }
+    }
+
+    #[test]
+    fn force_derivatives_match_finite_differences() {
+        let p = Params::default();
+        let d = Arc::new(
+            Discretization::fusiform(
+                0.05,
+                crate::specimen::MEAN_AREA,
+                Resolution {
+                    n_axial: 6,
+                    n_radial: 1,
+                },
+                FibreLayout::Axial,
+                Ends::Clamped,
+            )
+            .unwrap(),
+        );
+        let (m, _) = Muscle::isometric(d.clone(), &p, 0.05 * 1.1, 0.3).unwrap();
+        let h = 1e-3;
+        let step = |l: f64, a: f64| m.advance(&p, l, h, &|_| a).unwrap();
+        let (l, a) = (0.05 * 1.12, 0.5);
+        let base = step(l, a);
+        let (dfdl, dfda) = d.force_derivatives(&base.solution.evaluation).unwrap();
+        let f = |s: &Advance| d.reaction(&s.solution.evaluation.forces);
+        let el = 1e-7;
+        let fd_l = (f(&step(l + el, a)) - f(&step(l - el, a))) / (2.0 * el);
+        let ea = 1e-6;
+        let fd_a = (f(&step(l, a + ea)) - f(&step(l, a - ea))) / (2.0 * ea);
+        assert!(
+            ((dfdl - fd_l) / fd_l).abs() < 1e-5,
+            "dF/dL {dfdl} vs fd {fd_l}"
+        );
+        assert!(
+            ((dfda - fd_a) / fd_a).abs() < 1e-5,
+            "dF/da {dfda} vs fd {fd_a}"
+        );
+    }
+
+    /// The assembled tangent of [`Discretization::evaluate`] against central
+    /// differences of its forces, on a perturbed active state (every column).
+    #[test]
+    fn assembled_tangent_matches_finite_differences_of_the_forces() {
+        let p = Params {
+            d_comp: 1e-6,
+            ..Params::default()
+        };
+        let d = Discretization::fusiform(
+            0.05,
+            crate::specimen::MEAN_AREA,
+            Resolution {
+                n_axial: 3,
+                n_radial: 1,
+            },
+            FibreLayout::Meridian,
+            Ends::Clamped,
+        )
+        .unwrap();
+        let mut x = d.reference_positions();
+        for (i, v) in x.iter_mut().enumerate() {
+            *v *= 1.0 + 0.02 * (((i * 7919) % 17) as f64 / 17.0 - 0.5);
+        }
+        let hist = vec![
+            FibreHistory {
+                lambda_s: 1.01,
+                lambda_m: 0.98
+            };
+            d.n_elements()
+        ];
+        let rate = FibreRate::Step { h: 1e-3 };
+        let ev = d.evaluate(&p, &x, 0.7, &hist, rate, true).unwrap();
+        let values = ev.tangent.clone().unwrap();
+        let n = x.len();
+        let scale = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut col = vec![0.0; n];
+        let mut unit = vec![0.0; n];
+        for j in 0..n {
+            unit.iter_mut().for_each(|u| *u = 0.0);
+            unit[j] = 1.0;
+            d.pattern.multiply(&values, &unit, &mut col);
+            let e = 1e-9;
+            let (mut xp, mut xm) = (x.clone(), x.clone());
+            xp[j] += e;
+            xm[j] -= e;
+            let fp = d.evaluate(&p, &xp, 0.7, &hist, rate, false).unwrap().forces;
+            let fm = d.evaluate(&p, &xm, 0.7, &hist, rate, false).unwrap().forces;
+            for i in 0..n {
+                let fd = (fp[i] - fm[i]) / (2.0 * e);
+                assert!(
+                    (fd - col[i]).abs() < 1e-6 * scale,
+                    "K[{i},{j}] = {} vs fd {fd} (scale {scale:e})",
+                    col[i]
+                );
+            }
+        }
+        // ∂f/∂a against a difference in the activation level.
+        let ea = 1e-6;
+        let fp = d
+            .evaluate(&p, &x, 0.7 + ea, &hist, rate, false)
+            .unwrap()
+            .forces;
+        let fm = d
+            .evaluate(&p, &x, 0.7 - ea, &hist, rate, false)
+            .unwrap()
+            .forces;
+        let amax = ev.d_activation.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for i in 0..n {
+            let fd = (fp[i] - fm[i]) / (2.0 * ea);
+            assert!((fd - ev.d_activation[i]).abs() < 1e-6 * amax, "df/da[{i}]");
+        }
+    }
+}

@@ -1,0 +1,100 @@
+//! What the muscle FMUs share: units, variable-table helpers, range checks.
+
+use crate::fmi2::{Causality, ModelError, ScalarVariable, Unit, VarType, Variability};
+use crate::law::params::Range;
+
+/// The units both muscle FMUs declare.
+pub fn units() -> Vec<Unit> {
+    let u = |name, kg, m, s| Unit { name, kg, m, s };
+    vec![
+        u("1", 0, 0, 0),
+        u("m", 0, 1, 0),
+        u("m2", 0, 2, 0),
+        u("s", 0, 0, 1),
+        u("1/s", 0, 0, -1),
+        u("N", 1, 1, -2),
+        u("Pa", 1, -1, -2),
+        u("1/Pa", -1, 1, 2),
+    ]
+}
+
+/// A Real type with a unit, start and range.
+pub fn real(unit: &'static str, start: Option<f64>, min: Option<f64>, max: Option<f64>) -> VarType {
+    VarType::Real {
+        unit: Some(unit),
+        start,
+        min,
+        max,
+    }
+}
+
+/// A fixed parameter.
+pub fn parameter<V>(
+    name: &'static str,
+    description: &'static str,
+    ty: VarType,
+    id: V,
+) -> ScalarVariable<V> {
+    ScalarVariable {
+        name,
+        description,
+        causality: Causality::Parameter,
+        variability: Variability::Fixed,
+        initial: None,
+        ty,
+        depends_on: vec![],
+        id,
+    }
+}
+
+/// A continuous input.
+pub fn input<V>(
+    name: &'static str,
+    description: &'static str,
+    ty: VarType,
+    id: V,
+) -> ScalarVariable<V> {
+    ScalarVariable {
+        name,
+        description,
+        causality: Causality::Input,
+        variability: Variability::Continuous,
+        initial: None,
+        ty,
+        depends_on: vec![],
+        id,
+    }
+}
+
+/// `v` finite and > 0, else an error naming `name`.
+pub fn check_positive(name: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ModelError(format!(
+            "{name} = {v} is out of range: must be finite and > 0"
+        )))
+    }
+}
+
+/// `v` in `range`, else an error naming `name` and the range.
+pub fn check_range(name: &str, v: f64, range: Range) -> Result<(), ModelError> {
+    if range.contains(v) {
+        Ok(())
+    } else {
+        Err(ModelError(format!(
+            "{name} = {v} is out of range: must be {range}"
+        )))
+    }
+}
+
+/// `v` in [0, 1], else an error naming `name`.
+pub fn check_unit_interval(name: &str, v: f64) -> Result<(), ModelError> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(ModelError(format!(
+            "{name} = {v} is out of range: must be in [0, 1]"
+        )))
+    }
+}

@@ -1,0 +1,935 @@
+//! `HillMuscleFE`: the lumped 3D finite-element muscle as an FMI 2.0
+//! Co-Simulation model (issue 3): the paper's fusiform specimen
+//! ([`crate::fe::muscle`]), same inputs and outputs as `HillMuscle1D` plus
+//! field diagnostics.
+//!
+//! Each step, with the conventions of MODEL_NOTES "Co-simulation
+//! conventions":
+//! 1. the activation level follows da/dt = S (u − a) exactly (or equals the
+//!    command when `activation_dynamics = false`; substeps then ramp it
+//!    linearly over the step);
+//! 2. the moved end face goes from where it is to the input `length` (or
+//!    `length + h · dlength/dt` with an input derivative), the fixed face
+//!    stays; quasi-static equilibrium is solved at the end of the step with
+//!    the CE–SEE history of every element advanced over h, substepping when
+//!    Newton does not converge; nothing is committed unless the whole step
+//!    converges (else `fmi2Discard`, instance unchanged).
+//!
+//! Geometry: the paper's fusiform muscle scaled to rest length `L0` and mean
+//! cross-section `area` = V0/L0 (defaults: the paper's 5 cm specimen and its
+//! mean section, the same default `area` as `HillMuscle1D`). The mesh
+//! (`n_axial` × `n_radial`, [`crate::fe::mesh`]) is built at initialization.
+//!
+//! Outputs (volume averages use the elements' reference volumes):
+//! `force` the axial reaction on the moved face; `stress` = force / area;
+//! `cauchy_stress` = force · length / v (v the current volume: by
+//! equilibrium, the volume average of σ_xx); `fibre_stretch`, `ce_stretch`,
+//! `see_stretch`, `active_stress` (σ_s) volume averages; `passive_stress` =
+//! stress − active_stress; `volume_ratio_min`/`max` over the elements' J;
+//! `max_fibre_stretch`; `newton_iterations` of the last step (all substeps).
+
+use std::sync::{Arc, OnceLock};
+
+use crate::fe::mesh::{FibreLayout, Resolution};
+use crate::fe::muscle::{Discretization, Ends, Muscle, Solution};
+use crate::fmi2::bytes::{ByteReader, ByteWriter};
+use crate::fmi2::{
+    Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
+    VarType, Variability,
+};
+use crate::fmus::common::{
+    check_positive, check_range, check_unit_interval, input, parameter, real, units,
+};
+use crate::law::activation::{activation_step, Decay};
+use crate::law::params::{AREA_RANGE, L0_RANGE};
+use crate::law::uniaxial::evaluable_stretch_range;
+use crate::law::{FibreHistory, FibreRate, ParamId, Params, PARAMETERS};
+
+/// Default rest length: the paper's specimen.
+pub const DEFAULT_L0: f64 = crate::specimen::LENGTH;
+/// Default mean cross-section V0/L0 of the paper's specimen.
+pub const DEFAULT_AREA: f64 = crate::specimen::MEAN_AREA;
+/// Mesh resolution limits (the finest verification level is 48 × 8).
+const N_AXIAL_RANGE: (i32, i32) = (1, 96);
+const N_RADIAL_RANGE: (i32, i32) = (1, 16);
+
+/// A variable of `HillMuscleFE`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Var {
+    Param(ParamId),
+    L0,
+    Area,
+    ActivationDynamics,
+    InitialActivation,
+    NAxial,
+    NRadial,
+    FibreLayout,
+    Activation,
+    Length,
+    Out(Output),
+    NewtonIterations,
+}
+
+/// The Real outputs, in table order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Output {
+    Force,
+    Stress,
+    CauchyStress,
+    ActivationLevel,
+    FibreStretch,
+    CeStretch,
+    SeeStretch,
+    ActiveStress,
+    PassiveStress,
+    VolumeRatioMin,
+    VolumeRatioMax,
+    MaxFibreStretch,
+}
+
+const OUTPUTS: [(Output, &str, &str, &str); 12] = [
+    (
+        Output::Force,
+        "force",
+        "Axial reaction force on the moved end face, tension positive",
+        "N",
+    ),
+    (
+        Output::Stress,
+        "stress",
+        "Engineering (nominal) stress: force / area",
+        "Pa",
+    ),
+    (
+        Output::CauchyStress,
+        "cauchy_stress",
+        "Mean axial Cauchy stress: force * length / current volume",
+        "Pa",
+    ),
+    (
+        Output::ActivationLevel,
+        "activation_level",
+        "Activation level a",
+        "1",
+    ),
+    (
+        Output::FibreStretch,
+        "fibre_stretch",
+        "Volume average of the modified fibre stretch",
+        "1",
+    ),
+    (
+        Output::CeStretch,
+        "ce_stretch",
+        "Volume average of the contractile element stretch lambda_m",
+        "1",
+    ),
+    (
+        Output::SeeStretch,
+        "see_stretch",
+        "Volume average of the series elastic element stretch lambda_s",
+        "1",
+    ),
+    (
+        Output::ActiveStress,
+        "active_stress",
+        "Volume average of the SEE (= CE) stress sigma_s",
+        "Pa",
+    ),
+    (
+        Output::PassiveStress,
+        "passive_stress",
+        "stress - active_stress",
+        "Pa",
+    ),
+    (
+        Output::VolumeRatioMin,
+        "volume_ratio_min",
+        "Smallest element volume ratio (mean of its nodal J, the ratio the volume constraint acts on)",
+        "1",
+    ),
+    (
+        Output::VolumeRatioMax,
+        "volume_ratio_max",
+        "Largest element volume ratio (mean of its nodal J, the ratio the volume constraint acts on)",
+        "1",
+    ),
+    (
+        Output::MaxFibreStretch,
+        "max_fibre_stretch",
+        "Largest element modified fibre stretch",
+        "1",
+    ),
+];
+const N_OUT: usize = OUTPUTS.len();
+
+/// What the last step's tangent was formed with (for the directional
+/// derivatives, recomputed on demand from the committed positions).
+#[derive(Clone, Debug, PartialEq)]
+struct LastStep {
+    /// Element histories at the start of the last (sub)step.
+    start: Vec<FibreHistory>,
+    /// `None`: isometric (initialization).
+    h: Option<f64>,
+    /// Activation level at its end.
+    activation: f64,
+    /// ∂(level)/∂(command).
+    da_du: f64,
+}
+
+impl LastStep {
+    fn rate(&self) -> FibreRate {
+        match self.h {
+            Some(h) => FibreRate::Step { h },
+            None => FibreRate::Isometric,
+        }
+    }
+}
+
+/// The FE muscle FMU model.
+#[derive(Clone, Debug)]
+pub struct HillFE {
+    params: Params,
+    l0: f64,
+    area: f64,
+    activation_dynamics: bool,
+    initial_activation: f64,
+    n_axial: i32,
+    n_radial: i32,
+    fibre_layout: i32,
+    command: f64,
+    length: Option<f64>,
+    command_rate: f64,
+    length_rate: f64,
+    // Committed state (`None` before the first initialization).
+    activation_level: f64,
+    muscle: Option<Muscle>,
+    last: Option<LastStep>,
+    decay: Option<Decay>,
+    outputs: [f64; N_OUT],
+    newton_iterations: i32,
+    /// (dF/dL, dF/da) at the committed state, computed on first request.
+    derivatives: OnceLock<Result<(f64, f64), String>>,
+}
+
+impl HillFE {
+    fn length(&self) -> f64 {
+        self.length.unwrap_or(self.l0)
+    }
+
+    fn layout(&self) -> FibreLayout {
+        if self.fibre_layout == 1 {
+            FibreLayout::Meridian
+        } else {
+            FibreLayout::Axial
+        }
+    }
+
+    fn check_setup(&self) -> Result<(), ModelError> {
+        self.params
+            .validate()
+            .map_err(|e| ModelError(e.to_string()))?;
+        check_range("L0", self.l0, L0_RANGE)?;
+        check_range("area", self.area, AREA_RANGE)?;
+        check_unit_interval("initial_activation", self.initial_activation)?;
+        check_positive("length", self.length())?;
+        Ok(())
+    }
+
+    /// The discretization for the current parameters (reused when the
+    /// geometry and mesh are those of the committed muscle).
+    fn discretization(&self) -> Result<Arc<Discretization>, ModelError> {
+        let resolution = Resolution {
+            n_axial: self.n_axial as usize,
+            n_radial: self.n_radial as usize,
+        };
+        if let Some(m) = &self.muscle {
+            let d = &m.disc;
+            if d.l0 == self.l0
+                && d.mesh.resolution == resolution
+                && d.area == self.area
+                && d.fibres == self.layout()
+            {
+                return Ok(d.clone());
+            }
+        }
+        Discretization::fusiform(self.l0, self.area, resolution, self.layout(), Ends::Clamped)
+            .map(Arc::new)
+            .map_err(ModelError)
+    }
+
+    fn check_stretch(&self, length: f64) -> Result<(), String> {
+        let (lo, hi) = evaluable_stretch_range(&self.params);
+        let lambda = length / self.l0;
+        if (lo..=hi).contains(&lambda) {
+            Ok(())
+        } else {
+            Err(format!(
+                "length = {length} m with L0 = {} m (stretch {lambda}) is outside the range the law can evaluate, [{lo:.4}, {hi:.4}]",
+                self.l0
+            ))
+        }
+    }
+
+    /// Outputs of a converged solution.
+    fn outputs_of(&self, muscle: &Muscle, s: &Solution, activation: f64) -> [f64; N_OUT] {
+        let d = &muscle.disc;
+        let ev = &s.evaluation;
+        let force = d.reaction(&ev.forces);
+        let stress = force / self.area;
+        let (mut v, mut lf, mut lm, mut ls, mut ss) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut jmin, mut jmax, mut lfmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+        for (e, ve) in ev.elements.iter().zip(d.element_reference_volumes()) {
+            v += ve;
+            lf += ve * e.lambda_f;
+            lm += ve * e.history.lambda_m;
+            ls += ve * e.history.lambda_s;
+            ss += ve * e.sigma_see;
+            jmin = jmin.min(e.j_assumed);
+            jmax = jmax.max(e.j_assumed);
+            lfmax = lfmax.max(e.lambda_f);
+        }
+        let mut o = [0.0; N_OUT];
+        o[Output::Force as usize] = force;
+        o[Output::Stress as usize] = stress;
+        o[Output::CauchyStress as usize] = force * muscle.length / ev.volume;
+        o[Output::ActivationLevel as usize] = activation;
+        o[Output::FibreStretch as usize] = lf / v;
+        o[Output::CeStretch as usize] = lm / v;
+        o[Output::SeeStretch as usize] = ls / v;
+        o[Output::ActiveStress as usize] = ss / v;
+        o[Output::PassiveStress as usize] = stress - ss / v;
+        o[Output::VolumeRatioMin as usize] = jmin;
+        o[Output::VolumeRatioMax as usize] = jmax;
+        o[Output::MaxFibreStretch as usize] = lfmax;
+        o
+    }
+
+    fn commit(&mut self, muscle: Muscle, s: &Solution, last: LastStep, iterations: usize) {
+        self.outputs = self.outputs_of(&muscle, s, last.activation);
+        self.activation_level = last.activation;
+        self.muscle = Some(muscle);
+        self.last = Some(last);
+        self.newton_iterations = i32::try_from(iterations).unwrap_or(i32::MAX);
+        self.derivatives = OnceLock::new();
+    }
+
+    /// (dF/dL, dF/da) at the committed state from its converged tangent.
+    fn force_derivatives(&self) -> Result<(f64, f64), ModelError> {
+        self.derivatives
+            .get_or_init(|| {
+                let (m, last) = match (&self.muscle, &self.last) {
+                    (Some(m), Some(l)) => (m, l),
+                    _ => return Err("the model is not initialized".into()),
+                };
+                let ev = m.disc.evaluate(
+                    &self.params,
+                    &m.x,
+                    last.activation,
+                    &last.start,
+                    last.rate(),
+                    true,
+                )?;
+                m.disc.force_derivatives(&ev)
+            })
+            .clone()
+            .map_err(ModelError)
+    }
+}
+
+impl Model for HillFE {
+    type Var = Var;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            model_identifier: "HillMuscleFE",
+            description: "Hill-type hyperelastic skeletal muscle (Lu et al. 2011), lumped 3D finite-element fusiform muscle",
+            version: env!("CARGO_PKG_VERSION"),
+            units: units(),
+            default_experiment: (0.0, 2.5, 1e-2),
+            max_input_derivative_order: 1,
+            direct_feedthrough: false,
+        }
+    }
+
+    fn variables() -> Vec<ScalarVariable<Var>> {
+        let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
+            .iter()
+            .map(|info| {
+                parameter(
+                    info.name,
+                    info.description,
+                    real(
+                        info.unit,
+                        Some(info.default),
+                        Some(info.range.min),
+                        Some(info.range.max),
+                    ),
+                    Var::Param(info.id),
+                )
+            })
+            .collect();
+        v.push(parameter(
+            "L0",
+            "Rest length of the muscle (the fusiform specimen is scaled to it)",
+            real(
+                "m",
+                Some(DEFAULT_L0),
+                Some(L0_RANGE.min),
+                Some(L0_RANGE.max),
+            ),
+            Var::L0,
+        ));
+        v.push(parameter(
+            "area",
+            "Mean cross-section V0/L0 of the fusiform muscle (radii scaled to it); stress = force / area",
+            real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
+            Var::Area,
+        ));
+        v.push(parameter(
+            "activation_dynamics",
+            "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
+            VarType::Boolean { start: Some(true) },
+            Var::ActivationDynamics,
+        ));
+        v.push(parameter(
+            "initial_activation",
+            "Activation level at the start time",
+            real("1", Some(0.0), Some(0.0), Some(1.0)),
+            Var::InitialActivation,
+        ));
+        let integer = |start, (min, max)| VarType::Integer {
+            start: Some(start),
+            min: Some(min),
+            max: Some(max),
+        };
+        v.push(parameter(
+            "n_axial",
+            "Mesh: element layers along the axis",
+            integer(12, N_AXIAL_RANGE),
+            Var::NAxial,
+        ));
+        v.push(parameter(
+            "n_radial",
+            "Mesh: rings in the cross-section",
+            integer(2, N_RADIAL_RANGE),
+            Var::NRadial,
+        ));
+        v.push(parameter(
+            "fibre_layout",
+            "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
+            integer(0, (0, 1)),
+            Var::FibreLayout,
+        ));
+        v.push(input(
+            "activation",
+            "Activation command u in [0, 1] (values outside are clamped with a warning)",
+            real("1", Some(0.0), Some(0.0), Some(1.0)),
+            Var::Activation,
+        ));
+        v.push(input(
+            "length",
+            "Muscle length reached at the end of the step",
+            real(
+                "m",
+                Some(DEFAULT_L0),
+                Some(L0_RANGE.min),
+                Some(L0_RANGE.max),
+            ),
+            Var::Length,
+        ));
+        let activation_deps = ["activation", "activation_dynamics", "initial_activation"];
+        let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
+        state_deps.extend([
+            "length",
+            "L0",
+            "area",
+            "n_axial",
+            "n_radial",
+            "fibre_layout",
+        ]);
+        state_deps.extend(
+            [
+                ParamId::B,
+                ParamId::C,
+                ParamId::Alpha,
+                ParamId::Beta,
+                ParamId::A,
+                ParamId::Sigma0,
+                ParamId::LambdaOpt,
+                ParamId::Dcomp,
+                ParamId::K,
+            ]
+            .map(|id| Params::info(id).name),
+        );
+        let output = |name, description, ty, depends_on, id| ScalarVariable {
+            name,
+            description,
+            causality: Causality::Output,
+            variability: Variability::Continuous,
+            initial: Some(Initial::Calculated),
+            ty,
+            depends_on,
+            id,
+        };
+        for (out, name, description, unit) in OUTPUTS {
+            let deps = if out == Output::ActivationLevel {
+                activation_deps.to_vec()
+            } else {
+                state_deps.clone()
+            };
+            v.push(output(
+                name,
+                description,
+                real(unit, None, None, None),
+                deps,
+                Var::Out(out),
+            ));
+        }
+        v.push(ScalarVariable {
+            variability: Variability::Discrete,
+            ..output(
+                "newton_iterations",
+                "Newton iterations of the last step (all substeps, including the predictor)",
+                VarType::Integer {
+                    start: None,
+                    min: None,
+                    max: None,
+                },
+                state_deps.clone(),
+                Var::NewtonIterations,
+            )
+        });
+        v
+    }
+
+    fn new() -> Self {
+        let mut m = HillFE {
+            params: Params::default(),
+            l0: DEFAULT_L0,
+            area: DEFAULT_AREA,
+            activation_dynamics: true,
+            initial_activation: 0.0,
+            n_axial: 12,
+            n_radial: 2,
+            fibre_layout: 0,
+            command: 0.0,
+            length: None,
+            command_rate: 0.0,
+            length_rate: 0.0,
+            activation_level: 0.0,
+            muscle: None,
+            last: None,
+            decay: None,
+            outputs: [0.0; N_OUT],
+            newton_iterations: 0,
+            derivatives: OnceLock::new(),
+        };
+        m.initialize().expect("the default start values are valid");
+        m
+    }
+
+    fn get_real(&self, var: Var) -> f64 {
+        match var {
+            Var::Param(id) => self.params.get(id),
+            Var::L0 => self.l0,
+            Var::Area => self.area,
+            Var::InitialActivation => self.initial_activation,
+            Var::Activation => self.command,
+            Var::Length => self.length(),
+            Var::Out(o) => self.outputs[o as usize],
+            _ => f64::NAN,
+        }
+    }
+
+    fn get_integer(&self, var: Var) -> i32 {
+        match var {
+            Var::NAxial => self.n_axial,
+            Var::NRadial => self.n_radial,
+            Var::FibreLayout => self.fibre_layout,
+            Var::NewtonIterations => self.newton_iterations,
+            _ => 0,
+        }
+    }
+
+    fn get_boolean(&self, var: Var) -> bool {
+        matches!(var, Var::ActivationDynamics) && self.activation_dynamics
+    }
+
+    fn set_real(&mut self, var: Var, value: f64) -> Result<SetOutcome, ModelError> {
+        match var {
+            Var::Param(id) => self
+                .params
+                .set(id, value)
+                .map_err(|e| ModelError(e.to_string()))?,
+            Var::L0 => {
+                check_range("L0", value, L0_RANGE)?;
+                self.l0 = value;
+            }
+            Var::Area => {
+                check_range("area", value, AREA_RANGE)?;
+                self.area = value;
+            }
+            Var::InitialActivation => {
+                check_unit_interval("initial_activation", value)?;
+                self.initial_activation = value;
+            }
+            Var::Length => {
+                check_positive("length", value)?;
+                self.length = Some(value);
+            }
+            Var::Activation => {
+                if value.is_nan() {
+                    return Err(ModelError(format!(
+                        "activation = {value} is out of range: must be in [0, 1]"
+                    )));
+                }
+                let clamped = value.clamp(0.0, 1.0);
+                self.command = clamped;
+                if clamped != value {
+                    return Ok(SetOutcome::Warning {
+                        message: format!("activation = {value} is outside [0, 1]; clamped to {clamped} (logged once per instance)"),
+                        log_once: true,
+                    });
+                }
+            }
+            _ => return Err(ModelError("not a Real input or parameter".into())),
+        }
+        Ok(SetOutcome::Ok)
+    }
+
+    fn set_integer(&mut self, var: Var, value: i32) -> Result<SetOutcome, ModelError> {
+        let (name, range, slot) = match var {
+            Var::NAxial => ("n_axial", N_AXIAL_RANGE, &mut self.n_axial),
+            Var::NRadial => ("n_radial", N_RADIAL_RANGE, &mut self.n_radial),
+            Var::FibreLayout => ("fibre_layout", (0, 1), &mut self.fibre_layout),
+            _ => return Err(ModelError("not an Integer parameter".into())),
+        };
+        if !(range.0..=range.1).contains(&value) {
+            return Err(ModelError(format!(
+                "{name} = {value} is out of range: must be in [{}, {}]",
+                range.0, range.1
+            )));
+        }
+        *slot = value;
+        Ok(SetOutcome::Ok)
+    }
+
+    fn set_boolean(&mut self, var: Var, value: bool) -> Result<SetOutcome, ModelError> {
+        match var {
+            Var::ActivationDynamics => {
+                self.activation_dynamics = value;
+                Ok(SetOutcome::Ok)
+            }
+            _ => Err(ModelError("not a Boolean parameter".into())),
+        }
+    }
+
+    fn set_real_input_derivative(
+        &mut self,
+        var: Var,
+        _order: i32,
+        value: f64,
+    ) -> Result<(), ModelError> {
+        if !value.is_finite() {
+            return Err(ModelError(format!(
+                "input derivative {value} must be finite"
+            )));
+        }
+        match var {
+            Var::Activation => self.command_rate = value,
+            Var::Length => self.length_rate = value,
+            _ => return Err(ModelError("not a Real input".into())),
+        }
+        Ok(())
+    }
+
+    /// Isometric equilibrium at the initial length and `initial_activation`
+    /// (with `activation_dynamics = false`: at the command).
+    fn initialize(&mut self) -> Result<(), ModelError> {
+        self.check_setup()?;
+        let (a, da_du) = if self.activation_dynamics {
+            (self.initial_activation, 0.0)
+        } else {
+            (self.command, 1.0)
+        };
+        let length = self.length();
+        self.check_stretch(length).map_err(ModelError)?;
+        let disc = self.discretization()?;
+        let (muscle, s) = Muscle::isometric(disc.clone(), &self.params, length, a)
+            .map_err(|e| ModelError(format!("initialization: {e}")))?;
+        let last = LastStep {
+            start: vec![FibreHistory::REST; disc.n_elements()],
+            h: None,
+            activation: a,
+            da_du,
+        };
+        self.commit(muscle, &s, last, s.iterations);
+        self.decay = None;
+        Ok(())
+    }
+
+    fn do_step(&mut self, _t: f64, h: f64) -> Result<(), StepError> {
+        let muscle = self
+            .muscle
+            .as_ref()
+            .ok_or_else(|| StepError::Error("the model is not initialized".into()))?;
+        let end_length = self.length() + h * self.length_rate;
+        if !(end_length.is_finite() && end_length > 0.0) {
+            return Err(StepError::Discard(format!(
+                "length at the end of the step, length + h * der(length) = {end_length}, must be finite and > 0"
+            )));
+        }
+        self.check_stretch(end_length).map_err(StepError::Discard)?;
+        let decay = Decay::for_step(self.decay, self.params.s, h);
+        let (a0, u, u_dot, s) = (
+            self.activation_level,
+            self.command,
+            self.command_rate,
+            self.params.s,
+        );
+        let (a_end, da_du) = if self.activation_dynamics {
+            activation_step(a0, u, u_dot, s, h, decay.value)
+        } else {
+            let a = u + h * u_dot;
+            if (0.0..=1.0).contains(&a) {
+                (a, 1.0)
+            } else {
+                (a.clamp(0.0, 1.0), 0.0)
+            }
+        };
+        let dynamics = self.activation_dynamics;
+        // The level within the step (for substeps): exact dynamics, or a
+        // linear ramp to the command without them.
+        let level = move |tau: f64| -> f64 {
+            if tau >= h {
+                a_end
+            } else if dynamics {
+                activation_step(a0, u, u_dot, s, tau, (-s * tau).exp()).0
+            } else {
+                a0 + (a_end - a0) * tau / h
+            }
+        };
+        let adv = muscle
+            .advance(&self.params, end_length, h, &level)
+            .map_err(|e| StepError::Discard(format!("length = {end_length} m: {e}")))?;
+        if adv.substeps > 1 {
+            // Informational: the layer logs nothing for a successful step.
+        }
+        let last = LastStep {
+            start: adv.start,
+            h: match adv.rate {
+                FibreRate::Step { h } => Some(h),
+                FibreRate::Isometric => None,
+            },
+            activation: a_end,
+            da_du,
+        };
+        let outputs = self.outputs_of(&adv.muscle, &adv.solution, a_end);
+        if outputs.iter().any(|x| !x.is_finite()) {
+            return Err(StepError::Discard(format!(
+                "non-finite output at length {end_length} m"
+            )));
+        }
+        self.commit(adv.muscle, &adv.solution, last, adv.iterations);
+        self.decay = Some(decay);
+        self.command_rate = 0.0;
+        self.length_rate = 0.0;
+        Ok(())
+    }
+
+    /// Partial derivatives of `force`, `stress` and `activation_level` with
+    /// respect to both inputs, from the converged tangent of the last step
+    /// (one factorisation and two solves, [`Discretization::force_derivatives`]).
+    fn partial_derivative(&self, unknown: Var, known: Var) -> Result<f64, ModelError> {
+        let by_length = match known {
+            Var::Length => true,
+            Var::Activation => false,
+            _ => {
+                return Err(ModelError(
+                    "directional derivatives are taken with respect to the inputs".into(),
+                ))
+            }
+        };
+        let da_du = self.last.as_ref().map_or(0.0, |l| l.da_du);
+        match unknown {
+            Var::Out(Output::ActivationLevel) => Ok(if by_length { 0.0 } else { da_du }),
+            Var::Out(o @ (Output::Force | Output::Stress)) => {
+                let (dl, da) = self.force_derivatives()?;
+                let d = if by_length { dl } else { da * da_du };
+                Ok(if o == Output::Force { d } else { d / self.area })
+            }
+            _ => Err(ModelError(
+                "HillMuscleFE provides directional derivatives of force, stress and activation_level only".into(),
+            )),
+        }
+    }
+
+    fn serialize(&self, out: &mut Vec<u8>) {
+        let params: Vec<f64> = PARAMETERS
+            .iter()
+            .map(|info| self.params.get(info.id))
+            .collect();
+        let mut w = ByteWriter::new(out);
+        w.f64s(&params)
+            .f64(self.l0)
+            .f64(self.area)
+            .bool(self.activation_dynamics)
+            .f64(self.initial_activation)
+            .i32(self.n_axial)
+            .i32(self.n_radial)
+            .i32(self.fibre_layout)
+            .f64(self.command)
+            .f64s(self.length.as_slice())
+            .f64(self.command_rate)
+            .f64(self.length_rate)
+            .f64(self.activation_level)
+            .f64s(self.decay.map(|d| d.h).as_slice())
+            .f64s(&self.outputs)
+            .i32(self.newton_iterations);
+        match (&self.muscle, &self.last) {
+            (Some(m), Some(l)) => {
+                let hist = |h: &[FibreHistory]| -> Vec<f64> {
+                    h.iter().flat_map(|x| [x.lambda_s, x.lambda_m]).collect()
+                };
+                w.bool(true)
+                    .f64s(&m.x)
+                    .f64s(&hist(&m.history))
+                    .f64(m.length)
+                    .f64s(&hist(&l.start))
+                    .f64s(l.h.as_slice())
+                    .f64(l.activation)
+                    .f64(l.da_du);
+            }
+            _ => {
+                w.bool(false);
+            }
+        }
+    }
+
+    fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
+        let bad = |m: String| ModelError(format!("HillMuscleFE state: {m}"));
+        let mut r = ByteReader::new(input);
+        let mut m = HillFE {
+            params: Params::default(),
+            l0: DEFAULT_L0,
+            area: DEFAULT_AREA,
+            activation_dynamics: true,
+            initial_activation: 0.0,
+            n_axial: 12,
+            n_radial: 2,
+            fibre_layout: 0,
+            command: 0.0,
+            length: None,
+            command_rate: 0.0,
+            length_rate: 0.0,
+            activation_level: 0.0,
+            muscle: None,
+            last: None,
+            decay: None,
+            outputs: [0.0; N_OUT],
+            newton_iterations: 0,
+            derivatives: OnceLock::new(),
+        };
+        let params = r.f64s()?;
+        if params.len() != PARAMETERS.len() {
+            return Err(bad(format!("{} parameters", params.len())));
+        }
+        for (info, &v) in PARAMETERS.iter().zip(&params) {
+            m.params.set(info.id, v).map_err(|e| bad(e.to_string()))?;
+        }
+        m.l0 = r.f64()?;
+        m.area = r.f64()?;
+        m.activation_dynamics = r.bool()?;
+        m.initial_activation = r.f64()?;
+        for (slot, var) in [(0, Var::NAxial), (1, Var::NRadial), (2, Var::FibreLayout)] {
+            let _ = slot;
+            let v = r.i32()?;
+            m.set_integer(var, v).map_err(|e| bad(e.0))?;
+        }
+        m.command = r.f64()?;
+        m.length = match r.f64s()?.as_slice() {
+            [] => None,
+            &[l] => Some(l),
+            other => return Err(bad(format!("bad length {other:?}"))),
+        };
+        m.command_rate = r.f64()?;
+        m.length_rate = r.f64()?;
+        m.activation_level = r.f64()?;
+        m.decay = match r.f64s()?.as_slice() {
+            [] => None,
+            &[h] if h.is_finite() && h > 0.0 => Some(Decay::new(m.params.s, h)),
+            other => return Err(bad(format!("bad activation decay step {other:?}"))),
+        };
+        let outputs = r.f64s()?;
+        if outputs.len() != N_OUT {
+            return Err(bad(format!("{} outputs", outputs.len())));
+        }
+        m.outputs.copy_from_slice(&outputs);
+        m.newton_iterations = r.i32()?;
+        m.check_setup().map_err(|e| bad(e.0))?;
+        let finite = [m.command, m.command_rate, m.length_rate, m.activation_level];
+        if finite.iter().chain(&m.outputs).any(|x| !x.is_finite()) {
+            return Err(bad("a non-finite value".into()));
+        }
+        if r.bool()? {
+            let disc = m.discretization()?;
+            let pairs = |v: Vec<f64>| -> Result<Vec<FibreHistory>, ModelError> {
+                if v.len() != 2 * disc.n_elements() || v.iter().any(|x| !x.is_finite()) {
+                    return Err(bad(format!("{} history values", v.len())));
+                }
+                Ok(v.chunks(2)
+                    .map(|c| FibreHistory {
+                        lambda_s: c[0],
+                        lambda_m: c[1],
+                    })
+                    .collect())
+            };
+            let x = r.f64s()?;
+            if x.len() != 3 * disc.n_nodes() || x.iter().any(|v| !v.is_finite()) {
+                return Err(bad(format!("{} position values", x.len())));
+            }
+            let history = pairs(r.f64s()?)?;
+            let length = r.f64()?;
+            let start = pairs(r.f64s()?)?;
+            let h = match r.f64s()?.as_slice() {
+                [] => None,
+                &[h] if h.is_finite() && h > 0.0 => Some(h),
+                other => return Err(bad(format!("bad step {other:?}"))),
+            };
+            let activation = r.f64()?;
+            let da_du = r.f64()?;
+            if !(length.is_finite() && length > 0.0 && activation.is_finite() && da_du.is_finite())
+            {
+                return Err(bad("a non-finite value".into()));
+            }
+            m.muscle = Some(Muscle {
+                disc,
+                x,
+                history,
+                length,
+            });
+            m.last = Some(LastStep {
+                start,
+                h,
+                activation,
+                da_du,
+            });
+        }
+        Ok(m)
+    }
+}
+
+/// The model, for the FMU's `documentation/index.html`.
+pub const FE_HTML: &str = r#"<h2>The finite-element muscle</h2>
+<p>The paper's fusiform specimen (length L0, circular sections with radius r(x) = r_end + (r_mid &minus; r_end) sin(&pi; x / L0),
+diameters 0.9 cm at the ends and 1.75 cm at the middle for L0 = 5 cm, scaled so that V0/L0 = <code>area</code>), meshed with
+4-node tetrahedra (<code>n_axial</code> layers, <code>n_radial</code> rings). The isochoric part of the law acts per element;
+the volumetric penalty acts on nodal volumes (average nodal pressure, Bonet &amp; Burton 1998), which keeps the nearly
+incompressible tetrahedron from locking. One end face fixed; every node of the other moved along the axis to
+<code>length</code>; quasi-static equilibrium each step by Newton's method with the consistent tangent (sparse Cholesky,
+LU when indefinite), a line search and automatic substepping; a step that still fails returns fmi2Discard with the
+instance unchanged.</p>
+<p><code>force</code> is the axial reaction on the moved face; <code>stress</code> = force / area. Directional derivatives
+of force, stress and activation_level with respect to both inputs come from the converged tangent.</p>
+"#;
