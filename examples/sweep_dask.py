@@ -141,7 +141,7 @@ def summarise_run(run, l0=sc.L0):
 
 def run_task(spec, fmu):
     """One simulation; never raises: a failure is returned as a row."""
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     row = {"run_id": spec["run_id"], "model": spec["model"], "scene": spec["scene"], "h": spec["h"],
            **spec["params"], "worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
@@ -155,6 +155,7 @@ def run_task(spec, fmu):
     except Exception as exc:  # reported in the table, with the parameters
         row.update(status="error", error=f"{type(exc).__name__}: {' '.join(str(exc).split())}")
     row["wall_s"] = time.perf_counter() - started
+    row["cpu_s"] = time.process_time() - cpu_started
     return row
 
 
@@ -215,14 +216,16 @@ def prepare_workers(client, fmu_path, ship, upload_modules=False):
     return client.scatter(Path(fmu_path).read_bytes(), broadcast=True)
 
 
-def run_dask(client, specs, fmu, progress=True, label="dask"):
-    """Submit one task per spec; gather rows as they complete. Returns (rows, wall)."""
+def run_dask(client, specs, fmu, progress=True, label="dask", task=None):
+    """Submit one task per spec; gather rows as they complete. Returns (rows,
+    wall). ``task`` (default ``run_task``) is for tests."""
     from dask.distributed import as_completed
 
     import sweep_dask  # by reference, so workers import the module rather than unpickling __main__
 
+    task = task or sweep_dask.run_task
     started = time.perf_counter()
-    futures = {client.submit(sweep_dask.run_task, spec, fmu, pure=False): spec for spec in specs}
+    futures = {client.submit(task, spec, fmu, pure=False): spec for spec in specs}
     bar, rows = Progress(len(specs), label, progress), []
     for future in as_completed(futures):
         try:
@@ -311,11 +314,14 @@ def summary_text(model, df, timing, files, effects):
     t = timing
     lines.append(f"- dask: {t['dask_s']:.1f} s wall for the {len(df)} runs on {t['workers']} worker processes "
                  f"({t['cluster']}; cluster start-up {t['startup_s']:.1f} s, not included); "
-                 f"sum of per-run times {df['wall_s'].sum():.1f} s.")
+                 f"per-run wall times sum to {df['wall_s'].sum():.1f} s, their CPU times to {df['cpu_s'].sum():.1f} s "
+                 f"(wall well above CPU: the workers waited for a core). 1-minute load average "
+                 f"{t['load_before']:.2f} before, {t['load_after_dask']:.2f} after.")
     if "serial_s" in t:
         lines.append(f"- serial loop in one process: {t['serial_s']:.1f} s; speed-up {t['serial_s'] / t['dask_s']:.2f}x "
-                     f"(with cluster start-up: {t['serial_s'] / (t['dask_s'] + t['startup_s']):.2f}x); the two "
-                     f"tables agree: {t['serial_matches']}.")
+                     f"(with cluster start-up: {t['serial_s'] / (t['dask_s'] + t['startup_s']):.2f}x); CPU time of "
+                     f"the serial runs {t['serial_cpu_s']:.1f} s; load average after it {t['load_after_serial']:.2f}; "
+                     f"the two tables agree: {t['serial_matches']}.")
     for _, r in failed.iterrows():
         params = {k: r[k] for k in ("sigma0", "D", "kc", "ke", "d") if k in r and r[k] == r[k]}
         lines.append(f"- failed run {r['run_id']} ({r['scene']}, {params}): {r['error']}")
@@ -346,11 +352,14 @@ def sweep_model(client, model, args, cluster_info):
     runs = make()[: args.limit] if args.limit else make()
     specs = make_specs(model.key, runs, h, inject_failure=args.inject_failure)
     fmu = prepare_workers(client, model.fmu, args.ship_fmu or bool(args.scheduler), bool(args.scheduler))
-    rows, dask_s = run_dask(client, specs, fmu, not args.no_progress, f"{model.key} dask")
-    timing = dict(cluster_info, dask_s=dask_s)
+    timing = dict(cluster_info, load_before=os.getloadavg()[0])
+    rows, timing["dask_s"] = run_dask(client, specs, fmu, not args.no_progress, f"{model.key} dask")
+    timing["load_after_dask"] = os.getloadavg()[0]
     if args.compare_serial:
         serial_rows, serial_s = run_serial(specs, model.fmu, not args.no_progress, f"{model.key} serial")
-        timing.update(serial_s=serial_s, serial_matches=compare_tables(rows, serial_rows))
+        timing.update(serial_s=serial_s, serial_matches=compare_tables(rows, serial_rows),
+                      serial_cpu_s=float(sum(r["cpu_s"] for r in serial_rows)),
+                      load_after_serial=os.getloadavg()[0])
     return table(rows), timing
 
 

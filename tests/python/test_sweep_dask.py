@@ -5,6 +5,8 @@ serial loop's, and the script writes its table and summary."""
 
 from __future__ import annotations
 
+import os
+
 import pandas as pd
 import pytest
 
@@ -103,3 +105,34 @@ def test_fe_runs_when_its_fmu_exists(client):
     assert (df["volume_ratio_min"] > 0.9).all() and (df["volume_ratio_max"] < 1.1).all()
     assert (df["newton_iterations"] > 0).all()
     assert (df["stress_20"] > 0).all()
+
+
+def _die_on_d_1_4(spec, fmu):
+    """A task that takes its worker process down for one spec (d = 1.4)."""
+    if spec["params"].get("d") == 1.4:
+        os._exit(1)
+    return sd.run_task(spec, fmu)
+
+
+def test_task_lost_with_its_worker_is_a_row(specs, fmu_path):
+    """When a worker dies under a task (dask gives up: allowed-failures 0),
+    the run is still in the table, status 'lost', with its parameters and
+    dask's KilledWorker error."""
+    import dask
+    import distributed  # noqa: F401  (loads distributed's config defaults before they are overridden)
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        client, cluster = sd.start_client(workers=1)
+    try:
+        rows, _ = sd.run_dask(client, specs, str(fmu_path), progress=False, task=_die_on_d_1_4)
+    finally:
+        client.close()
+        cluster.close()
+    df = sd.table(rows)
+    assert list(df["run_id"]) == [s["run_id"] for s in specs]
+    lost = df[df["status"] == "lost"]
+    # the task that killed its worker is lost; a task queued on that worker at
+    # the same moment may be lost with it (allowed-failures 0): both reported
+    assert 1.4 in set(lost["d"]) and lost["d"].notna().all()
+    assert lost["error"].str.contains("KilledWorker").all()
+    assert set(df["status"]) <= {"ok", "error", "lost"} and (df["status"] == "error").sum() == 1
