@@ -24,7 +24,9 @@ name (Real, Integer, Boolean).
 
 from __future__ import annotations
 
+import hashlib
 import os
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -76,6 +78,22 @@ class Model:
 
 
 _PROBLEMS: dict = {}
+
+
+def snapshot(model: Model) -> Model:
+    """The same model on a private copy of its FMU (in the temporary directory,
+    named by the content's hash), so that a long study is not affected by a
+    rebuild of ``dist/`` while it runs. Unavailable models are returned as they are."""
+    if not model.available():
+        return model
+    data = Path(model.fmu).read_bytes()
+    target = Path(tempfile.gettempdir()) / "hill_muscle_fmus" / hashlib.sha256(data).hexdigest()[:16] / Path(model.fmu).name
+    if not target.exists():
+        target.parent.mkdir(parents=True, exist_ok=True)
+        tmp = target.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_bytes(data)
+        tmp.replace(target)
+    return Model(model.key, target, model.description)
 
 
 def model_1d(fmu=None) -> Model:

@@ -572,7 +572,7 @@ def main(argv=None):
     skipped = [m.skip_reason() for m in models if not m.available()]
     for reason in skipped:
         print(reason)
-    models = [m for m in models if m.available()]
+    models = [mm.snapshot(m) for m in models if m.available()]
     fig3, fig4, fv, fig7, fig10, sens = compute(models, args.fe_step)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

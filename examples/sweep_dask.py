@@ -385,7 +385,7 @@ def main(argv=None):
     skipped = [m.skip_reason() for m in models if not m.available()]
     for reason in skipped:
         print(reason)
-    models = [m for m in models if m.available()]
+    models = [mm.snapshot(m) for m in models if m.available()]
     if not models:
         print("error: no model to sweep", file=sys.stderr)
         return 1

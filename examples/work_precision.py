@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import hashlib
 import json
 import os
 import platform
@@ -293,7 +294,8 @@ def machine_info():
 
 def fmu_info(model):
     md = mm.el.load_fmu(model.fmu).model_description
-    return f"{model.fmu.name}: {md.modelName} {md.version or ''}, {md.generationTool}, guid {md.guid}"
+    digest = hashlib.sha256(Path(model.fmu).read_bytes()).hexdigest()[:16]
+    return f"{model.fmu.name}: {md.modelName} {md.version or ''}, {md.generationTool}, guid {md.guid}, sha256 {digest}…"
 
 
 # --------------------------------------------------------------------------
@@ -592,7 +594,7 @@ def main(argv=None):
     skipped = [m.skip_reason() for m in models if not m.available()]
     for reason in skipped:
         print(reason)
-    models = [m for m in models if m.available()]
+    models = [mm.snapshot(m) for m in models if m.available()]
     fe_steps = tuple(float(x) for x in args.fe_steps.split(",")) if args.fe_steps else None
     steps_1d = tuple(float(x) for x in args.steps.split(",")) if args.steps else None
     families, refs = build_plan(models, mode, mm.parse_levels(args.fe_levels), fe_steps, args.fe_ref_step,
