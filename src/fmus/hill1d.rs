@@ -158,6 +158,36 @@ pub struct Hill1D {
     // Outputs of the last solve and what their partials d out / d input need.
     outputs: [f64; N_OUT],
     jacobian: Jacobian,
+    /// Solver counts of the last completed step or initialization.
+    statistics: Diagnostics,
+}
+
+/// Solver counts of the last completed step (or of the initialization), for
+/// diagnostics such as the stability matrix (`cargo run --release --example
+/// stability`). Not part of the FMU's state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StepStatistics {
+    /// Solves of the uniaxial state the step took (1: the step was solved in
+    /// one piece).
+    pub substeps: u32,
+    /// Newton iterations of the lateral solve, summed over the substeps
+    /// (each one evaluation of the law; a count above 100 in one solve means
+    /// the bracketed fallback ran).
+    pub lateral_iterations: u32,
+    /// Iterations of the CE–SEE solve, summed over every evaluation of the law.
+    pub ce_iterations: u32,
+}
+
+/// [`StepStatistics`] held by the model: diagnostics, not state. Not
+/// serialized, and equal to every other, so that two models in the same state
+/// compare equal whatever their solvers took to get there.
+#[derive(Clone, Copy, Debug, Default)]
+struct Diagnostics(StepStatistics);
+
+impl PartialEq for Diagnostics {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 /// What the partial derivatives of the outputs with respect to the inputs
@@ -361,6 +391,16 @@ impl Hill1D {
         self.q = u.q;
         self.outputs = outputs;
         self.jacobian = jacobian;
+        self.statistics = Diagnostics(StepStatistics {
+            substeps: 1,
+            lateral_iterations: u.iterations,
+            ce_iterations: u.ce_iterations,
+        });
+    }
+
+    /// Solver counts of the last completed step (or of the initialization).
+    pub fn last_step_statistics(&self) -> StepStatistics {
+        self.statistics.0
     }
 
     /// The current length input (`L0` until set).
@@ -662,6 +702,7 @@ impl Model for Hill1D {
             stretch_range: (0.0, f64::INFINITY),
             outputs: [0.0; N_OUT],
             jacobian: Jacobian::default(),
+            statistics: Diagnostics::default(),
         };
         // Outputs at the start values are those of the initial equilibrium.
         m.initialize().expect("the default start values are valid");

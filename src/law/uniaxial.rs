@@ -59,6 +59,9 @@ pub struct Uniaxial {
     pub d_dactivation: Sensitivity,
     /// Newton iterations of the lateral solve (evaluations of the law).
     pub iterations: u32,
+    /// Iterations of the CE–SEE solve summed over those evaluations (a
+    /// diagnostic, like `iterations`).
+    pub ce_iterations: u32,
 }
 
 /// Total derivatives of the uniaxial state with respect to one driver.
@@ -228,19 +231,24 @@ pub fn solve_uniaxial(
     };
     // Later evaluations warm-start the CE–SEE solve from the latest λs.
     let mut guess = *hist;
+    let mut ce_iterations = 0;
     for iterations in 1..=12u32 {
         let e = evaluate(p, lambda, q, activation, &guess, rate);
+        ce_iterations += e.fibre.iterations;
         let step = e.g / e.dg_dq;
         if !(step.is_finite() && e.dg_dq > 0.0) {
             break;
         }
         if step.abs() <= 1e-9 {
-            return finish(p, lambda, q, -step, e, iterations);
+            return finish(p, lambda, q, -step, e, (iterations, ce_iterations));
         }
         guess.lambda_s = e.fibre.history.lambda_s;
         q -= step.clamp(-0.2 * q, 0.2 * q);
     }
-    bracketed(p, lambda, activation, hist, rate)
+    bracketed(p, lambda, activation, hist, rate).map(|mut u| {
+        u.ce_iterations += ce_iterations;
+        u
+    })
 }
 
 /// Fallback: bracket the root of g(q) (increasing in q near J = 1) and solve
@@ -252,7 +260,12 @@ fn bracketed(
     hist: &FibreHistory,
     rate: FibreRate,
 ) -> Result<Uniaxial, UniaxialError> {
-    let g = |q: f64| evaluate(p, lambda, q, activation, hist, rate);
+    let ce_iterations = std::cell::Cell::new(0u32);
+    let g = |q: f64| {
+        let e = evaluate(p, lambda, q, activation, hist, rate);
+        ce_iterations.set(ce_iterations.get() + e.fibre.iterations);
+        e
+    };
     let (mut lo, mut hi) = (1.0f64, 1.0f64);
     let mut n = 0;
     // `<` and `>` are false for NaN, so a NaN residual keeps expanding (bounded).
@@ -289,7 +302,15 @@ fn bracketed(
             "lateral equilibrium at axial stretch {lambda}: {e:?}"
         ))
     })?;
-    finish(p, lambda, root.x, 0.0, g(root.x), 100 + root.iterations)
+    let e = g(root.x);
+    finish(
+        p,
+        lambda,
+        root.x,
+        0.0,
+        e,
+        (100 + root.iterations, ce_iterations.get()),
+    )
 }
 
 /// The state at q + dq from the evaluation `e` at q (dq is Newton's last
@@ -302,7 +323,7 @@ fn finish(
     q0: f64,
     dq: f64,
     e: Evaluation,
-    iterations: u32,
+    (iterations, ce_iterations): (u32, u32),
 ) -> Result<Uniaxial, UniaxialError> {
     let q = q0 + dq;
     let lambda_f = lambda / q;
@@ -343,6 +364,7 @@ fn finish(
         d_dactivation: sensitivity(dq_da, e.dtd_da, 0.0, fibre.dls_dactivation),
         fibre,
         iterations,
+        ce_iterations,
     })
 }
 

@@ -1,0 +1,679 @@
+//! The stability matrix of issue 4 §1: runs every model of
+//! `tests/stability/mod.rs` over the full grid and writes `docs/stability.md`
+//! (the report) and `docs/stability.csv` (every cell).
+//!
+//! ```sh
+//! cargo run --release --example stability                  # full matrix, ~10 min on 2 cores
+//! cargo run --release --example stability -- --subset      # the CI subset only
+//! cargo run --release --example stability -- --baseline docs/stability-before.csv
+//! ```
+//!
+//! Options: `--subset` (the CI subset), `--out DIR` (default `docs`),
+//! `--baseline CSV` (a CSV of an earlier run: adds a before/after section),
+//! `--csv-only`. `STABILITY_THREADS` sets the worker threads.
+
+#[path = "../tests/stability/mod.rs"]
+mod stability;
+
+use stability::*;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+fn main() {
+    let mut subset = false;
+    let mut out = PathBuf::from("docs");
+    let mut baseline: Option<PathBuf> = None;
+    let mut csv_only = false;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--subset" => subset = true,
+            "--out" => out = args.next().expect("--out DIR").into(),
+            "--baseline" => baseline = Some(args.next().expect("--baseline CSV").into()),
+            "--csv-only" => csv_only = true,
+            other => {
+                eprintln!("unknown argument {other}");
+                std::process::exit(2);
+            }
+        }
+    }
+    let entries = models();
+    let cells = if subset { ci_subset() } else { full_grid() };
+    let jobs: Vec<(usize, Cell)> = entries
+        .iter()
+        .enumerate()
+        .flat_map(|(e, entry)| {
+            cells
+                .iter()
+                .filter(|c| (entry.select)(c))
+                .map(move |c| (e, *c))
+        })
+        .collect();
+    let threads = threads();
+    eprintln!("stability: {} cells on {threads} threads", jobs.len());
+    let started = Instant::now();
+    let results = run_jobs(&entries, &jobs, threads, true);
+    let wall = started.elapsed().as_secs_f64();
+    std::fs::create_dir_all(&out).unwrap();
+    let name = if subset {
+        "stability-subset"
+    } else {
+        "stability"
+    };
+    let csv_path = out.join(format!("{name}.csv"));
+    std::fs::write(&csv_path, csv(&results)).unwrap();
+    eprintln!("stability: wrote {}", csv_path.display());
+    if !csv_only {
+        let base = baseline.map(|p| {
+            let text =
+                std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            (p, parse_csv(&text))
+        });
+        let md = report(&results, wall, threads, subset, base.as_ref());
+        let md_path = out.join(format!("{name}.md"));
+        std::fs::write(&md_path, md).unwrap();
+        eprintln!("stability: wrote {}", md_path.display());
+    }
+    let failures: usize = results.iter().filter(|r| !acceptance(r).is_empty()).count();
+    eprintln!("stability: {failures} cells fail the acceptance criteria ({wall:.0} s)");
+    if failures > 0 {
+        std::process::exit(1);
+    }
+}
+
+// ---------------------------------------------------------------------------
+// CSV
+// ---------------------------------------------------------------------------
+
+const CSV_HEADER: &str = "model,scenario,params,D,alpha,S,h,max_input_rate,outcome,end_t,steps,\
+discards,retried_pieces_max,nonfinite_steps,bound_violations,iterations_mean,iterations_max,\
+ce_iterations_mean,ce_iterations_max,substeps_mean,substeps_max,max_active_ratio,reference,\
+reference_outcome,agree_stress,agree_stress_t,agree_active,agree_active_t,seconds,message";
+
+fn outcome_code(o: &Option<Outcome>) -> (&'static str, f64, String) {
+    match o {
+        Some(Outcome::Completed) => ("completed", f64::NAN, String::new()),
+        Some(Outcome::Discarded { t, message }) => ("discarded", *t, message.clone()),
+        Some(Outcome::Error { message }) => ("error", f64::NAN, message.clone()),
+        Some(Outcome::Timeout { t }) => ("timeout", *t, String::new()),
+        None => ("none", f64::NAN, String::new()),
+    }
+}
+
+fn opt(x: Option<f64>) -> String {
+    x.map_or(String::new(), |v| format!("{v:.3}"))
+}
+
+fn csv(results: &[CellResult]) -> String {
+    let mut s = String::from(CSV_HEADER);
+    s.push('\n');
+    for r in results {
+        let c = &r.cell;
+        let run = &r.coarse;
+        let (code, t, mut msg) = outcome_code(&run.outcome);
+        if msg.is_empty() {
+            if let Some(d) = run.discards.first() {
+                msg = d.message.clone();
+            }
+        }
+        for f in std::iter::once(run).chain(r.fine.as_ref()) {
+            for v in f.violations.iter().chain(&f.nonfinite) {
+                msg = format!("{msg} [{v}]");
+            }
+        }
+        let (ref_code, ..) = r
+            .fine
+            .as_ref()
+            .map_or(("", f64::NAN, String::new()), |f| outcome_code(&f.outcome));
+        let a = r.agreement;
+        let _ = writeln!(
+            s,
+            "{},{},{},{:e},{},{:e},{:e},{:.4},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.6},{},{},{},{},{},{},{:.3},\"{}\"",
+            r.model,
+            c.scenario.name(),
+            c.params.name(),
+            c.d_comp,
+            c.alpha,
+            c.s,
+            c.h,
+            r.max_input_rate,
+            code,
+            if t.is_nan() { String::new() } else { format!("{t:e}") },
+            run.steps,
+            run.discards.len(),
+            run.discards.iter().filter_map(|d| d.recovered_with).max().map_or(String::new(), |n| n.to_string()),
+            run.n_nonfinite + r.fine.as_ref().map_or(0, |f| f.n_nonfinite),
+            run.n_violations + r.fine.as_ref().map_or(0, |f| f.n_violations),
+            opt(run.iterations.mean()),
+            run.iterations.max,
+            opt(run.ce_iterations.mean()),
+            run.ce_iterations.max,
+            opt(run.substeps.mean()),
+            run.substeps.max,
+            run.max_active_ratio,
+            if r.fine.is_some() { "h/100" } else { "skipped" },
+            ref_code,
+            a.map_or(String::new(), |a| format!("{:.3e}", a.stress)),
+            a.map_or(String::new(), |a| format!("{:e}", a.stress_t)),
+            a.map_or(String::new(), |a| format!("{:.3e}", a.active)),
+            a.map_or(String::new(), |a| format!("{:e}", a.active_t)),
+            run.seconds + r.fine.as_ref().map_or(0.0, |f| f.seconds),
+            msg.replace('"', "'"),
+        );
+    }
+    s
+}
+
+/// A row of a CSV written by [`csv`], as column name → value.
+type Row = BTreeMap<String, String>;
+
+fn parse_csv(text: &str) -> Vec<Row> {
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap_or_default()
+        .split(',')
+        .map(String::from)
+        .collect();
+    lines
+        .map(|l| {
+            // The last column (message) is quoted and may hold commas.
+            let (head, msg) = match l.find(",\"") {
+                Some(i) => (&l[..i], l[i + 2..].trim_end_matches('"')),
+                None => (l, ""),
+            };
+            let mut row: Row = header
+                .iter()
+                .cloned()
+                .zip(head.split(',').map(String::from))
+                .collect();
+            row.insert("message".into(), msg.into());
+            row
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------
+// The report
+// ---------------------------------------------------------------------------
+
+/// Matrix-view code of a cell (see the legend in the report).
+fn code(r: &CellResult) -> char {
+    if !acceptance(r).is_empty() {
+        return 'X';
+    }
+    match r.coarse.outcome {
+        Some(Outcome::Discarded { .. }) => return 'D',
+        Some(Outcome::Completed) => {}
+        _ => return 'X',
+    }
+    let retried = !r.coarse.discards.is_empty();
+    match r.agreement {
+        Some(a) if !a.within() => 'a',
+        _ if retried => 'r',
+        Some(_) => '.',
+        None => 'n',
+    }
+}
+
+fn fmt_h(h: f64) -> String {
+    if h >= 0.1 {
+        format!("{h}")
+    } else {
+        format!("{h:e}")
+    }
+}
+
+/// A communication point, short.
+fn fmt_t(t: f64) -> String {
+    let s = format!("{t:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    s.to_string()
+}
+
+fn pct(n: usize, of: usize) -> String {
+    if of == 0 {
+        "—".into()
+    } else {
+        format!("{n}/{of}")
+    }
+}
+
+fn report(
+    results: &[CellResult],
+    wall: f64,
+    threads: usize,
+    subset: bool,
+    baseline: Option<&(PathBuf, Vec<Row>)>,
+) -> String {
+    let mut s = String::new();
+    let command = if subset {
+        "cargo run --release --example stability -- --subset"
+    } else {
+        "cargo run --release --example stability"
+    };
+    let models: Vec<&str> = {
+        let mut m: Vec<&str> = results.iter().map(|r| r.model).collect();
+        m.dedup();
+        m
+    };
+    let _ = writeln!(
+        s,
+        "# Stability matrix (issue 4 §1)\n\n\
+         Generated by `{command}`{} ({} cells, {} worker threads, {wall:.0} s wall time on the project's \
+         shared 2-core machine). Every cell is in [`stability{}.csv`](stability{}.csv). Do not edit: \
+         rerun the command.\n",
+        baseline.map_or(String::new(), |(p, _)| format!(" `--baseline {}`", p.display())),
+        results.len(),
+        threads,
+        if subset { "-subset" } else { "" },
+        if subset { "-subset" } else { "" },
+    );
+    let _ = writeln!(
+        s,
+        "Models: {}. The harness is `tests/stability/mod.rs` (shared with the CI subset, \
+         `tests/stability_subset.rs`); its module documentation is the full specification.\n",
+        models.join(", ")
+    );
+    s.push_str(
+        "## What a cell is\n\n\
+         One model × D × alpha × S × communication step h × input program × parameter set, driven through \
+         the FMI 2.0 functions in-process (`hill_muscle::fmi2::api::*::<Model>`, the functions every \
+         exported `fmi2Xxx` symbol forwards to; the runner is generic over the model, so another FMU joins \
+         with one entry in `models()`):\n\n",
+    );
+    let _ = writeln!(
+        s,
+        "- D ∈ {{{}}} 1/Pa, alpha ∈ {{{}}}, S ∈ {{{}}} 1/s, h ∈ {{{}}} s;",
+        D_VALUES.map(|v| format!("{v:e}")).join(", "),
+        ALPHA_VALUES.map(|v| v.to_string()).join(", "),
+        S_VALUES.map(|v| format!("{v:e}")).join(", "),
+        H_VALUES.map(fmt_h).join(", ")
+    );
+    s.push_str("- parameter sets: `table2` (Table 2), `paper-min` (sigma0 0.16 MPa, kc 4.0, ke 3.14, d 1.1), `paper-max` (sigma0 1.0 MPa, kc 5.88, ke 7.56, d 1.8); every other parameter at Table 2, L0 = 0.05 m;\n- input programs (stretch = length/L0; the force-length support is fibre stretch 0.42–1.68, so 0.3 and 2.0 lie outside it):\n");
+    for sc in Scenario::ALL {
+        let _ = writeln!(s, "  - `{}`: {}", sc.name(), sc.describe());
+    }
+    let _ = writeln!(
+        s,
+        "\nEvery breakpoint of a program lies on the cell's communication grid (durations rounded to whole steps, \
+         at least one), and before each step the master sets the command of the step and the length at its \
+         end. The reference run takes {FINE_FACTOR} steps per communication step on the same input signal \
+         (length interpolated linearly, command held), so it solves the same continuous problem; it is made \
+         when it costs at most {FINE_BUDGET} steps (so not at h = 1e-6 s). The master saves the FMU state \
+         before every step; after an `fmi2Discard` it checks `fmi2LastSuccessfulTime`, restores the state and \
+         retries the step cut into 2, 4, …, {MAX_RETRY_PIECES} pieces; if that fails the cell ends there \
+         (`discarded`).\n\n\
+         Checks after every completed step of both runs: every Real output finite; activation_level in [0, 1]; \
+         0 ≤ active_stress ≤ f_v,max·sigma0·activation_level with f_v,max = d + (d − 1)/(ke·kc) (the eccentric \
+         asymptote, MODEL_NOTES \"Hill fibre\"), up to a relative 1e-9 and one ulp of the SEE stretch \
+         (alpha (σ_s + beta)·ε·λs: the resolution of σ_s); for the 1D model, the nominal stress of the matrix and \
+         the PE, stress − active_stress·fibre_stretch/stretch = [2 U_I' (λ̄f² − 1/λ̄f) + λ̄f σ_p]/λ, ≥ 0 in fibre \
+         tension and ≤ 0 in compression (relative 1e-9). Agreement: at every communication point \
+         |x − x_ref| ≤ {AGREEMENT_TOL}·max(sigma0, |x_ref|) for x = stress and active_stress (2 % of the \
+         maximum isometric stress, or of the stress where that is larger).\n\n\
+         Each cell is bounded in time: {}s for both runs (checked between steps; past it the cell is a \
+         `timeout`), and a watchdog ends the whole run, naming the cell, if one FMI call does not return \
+         within {}s.\n",
+        CELL_TIME_LIMIT.as_secs(),
+        HANG_LIMIT.as_secs()
+    );
+    // ---- Acceptance
+    let failing: Vec<(&CellResult, Vec<String>)> = results
+        .iter()
+        .map(|r| (r, acceptance(r)))
+        .filter(|(_, f)| !f.is_empty())
+        .collect();
+    let count = |f: &dyn Fn(&CellResult) -> bool| results.iter().filter(|r| f(r)).count();
+    let runs = |r: &CellResult| -> Vec<Run> {
+        std::iter::once(r.coarse.clone())
+            .chain(r.fine.clone())
+            .collect()
+    };
+    let any_run = |f: &dyn Fn(&Run) -> bool| count(&|r| runs(r).iter().any(f));
+    s.push_str("## Acceptance\n\n| criterion | cells failing |\n|---|---|\n");
+    let _ = writeln!(
+        s,
+        "| no crash, no fmi2Error/fmi2Fatal | {} |",
+        any_run(&|x| matches!(x.outcome, Some(Outcome::Error { .. })))
+    );
+    let _ = writeln!(
+        s,
+        "| no NaN or infinity in any output | {} |",
+        any_run(&|x| x.n_nonfinite > 0)
+    );
+    let _ = writeln!(
+        s,
+        "| no hang (each cell within its time bound) | {} |",
+        any_run(&|x| matches!(x.outcome, Some(Outcome::Timeout { .. })))
+    );
+    let _ = writeln!(
+        s,
+        "| every discard explained | {} |",
+        any_run(&|x| x.discards.iter().any(|d| explain(&d.message).is_none()))
+    );
+    let _ = writeln!(
+        s,
+        "| no completed step outside its bounds | {} |",
+        any_run(&|x| x.n_violations > 0)
+    );
+    let _ = writeln!(
+        s,
+        "| **all of the above** | **{}** of {} |\n",
+        failing.len(),
+        results.len()
+    );
+    for (r, f) in failing.iter().take(40) {
+        let _ = writeln!(s, "- {} {}: {}", r.model, r.cell.key(), f.join("; "));
+    }
+    if failing.len() > 40 {
+        let _ = writeln!(s, "- … and {} more (see the CSV)", failing.len() - 40);
+    }
+    // ---- Outcomes
+    s.push_str("\n## Outcomes\n\n| model | cells | completed | of which after a master retry | discarded | error | timeout |\n|---|---|---|---|---|---|---|\n");
+    for m in &models {
+        let of = |f: &dyn Fn(&CellResult) -> bool| count(&|r| r.model == *m && f(r));
+        let _ = writeln!(
+            s,
+            "| {m} | {} | {} | {} | {} | {} | {} |",
+            of(&|_| true),
+            of(&|r| r.coarse.outcome == Some(Outcome::Completed)),
+            of(&|r| r.coarse.outcome == Some(Outcome::Completed) && !r.coarse.discards.is_empty()),
+            of(&|r| matches!(r.coarse.outcome, Some(Outcome::Discarded { .. }))),
+            of(&|r| matches!(r.coarse.outcome, Some(Outcome::Error { .. }))),
+            of(&|r| matches!(r.coarse.outcome, Some(Outcome::Timeout { .. }))),
+        );
+    }
+    // ---- Discards
+    let mut groups: BTreeMap<&'static str, Vec<(&CellResult, &Discard, &str)>> = BTreeMap::new();
+    for r in results {
+        for (what, run) in [("h", Some(&r.coarse)), ("h/100", r.fine.as_ref())] {
+            if let Some(run) = run {
+                for d in &run.discards {
+                    groups
+                        .entry(explain(&d.message).unwrap_or("UNEXPLAINED"))
+                        .or_default()
+                        .push((r, d, what));
+                }
+            }
+        }
+    }
+    s.push_str("\n## Discards, explained\n\n");
+    if groups.is_empty() {
+        s.push_str("No step was discarded.\n");
+    }
+    for (why, list) in &groups {
+        let cells: std::collections::BTreeSet<String> =
+            list.iter().map(|(r, _, _)| r.cell.key()).collect();
+        let recovered = list
+            .iter()
+            .filter(|(_, d, _)| d.recovered_with.is_some())
+            .count();
+        let _ = writeln!(
+            s,
+            "### {why}\n\n{} discarded steps in {} cells ({} completed by the master's retry with smaller steps, \
+             at most {} pieces). First message: `{}`\n",
+            list.len(),
+            cells.len(),
+            recovered,
+            list.iter().filter_map(|(_, d, _)| d.recovered_with).max().unwrap_or(0),
+            list[0].1.message
+        );
+        for c in cells.iter().take(12) {
+            let _ = writeln!(s, "- {c}");
+        }
+        if cells.len() > 12 {
+            let _ = writeln!(s, "- … {} more cells (CSV)", cells.len() - 12);
+        }
+        s.push('\n');
+    }
+    // ---- Agreement
+    let _ = writeln!(
+        s,
+        "\n## Agreement with the run at h/100\n\nCells within the tolerance ({AGREEMENT_TOL} relative, above) \
+         of those compared, and the worst deviation, by communication step and input program:\n"
+    );
+    let _ = write!(s, "| program |");
+    for h in H_VALUES {
+        let _ = write!(s, " h = {} |", fmt_h(h));
+    }
+    s.push_str("\n|---|");
+    for _ in H_VALUES {
+        s.push_str("---|");
+    }
+    s.push('\n');
+    for sc in Scenario::ALL {
+        let _ = write!(s, "| `{}` |", sc.name());
+        for h in H_VALUES {
+            let a: Vec<Agreement> = results
+                .iter()
+                .filter(|r| r.cell.scenario == sc && r.cell.h == h)
+                .filter_map(|r| r.agreement)
+                .collect();
+            let within = a.iter().filter(|a| a.within()).count();
+            let worst = a.iter().map(|a| a.worst()).fold(0.0, f64::max);
+            if a.is_empty() {
+                s.push_str(" not affordable |");
+            } else {
+                let _ = write!(s, " {} (worst {:.1e}) |", pct(within, a.len()), worst);
+            }
+        }
+        s.push('\n');
+    }
+    s.push_str("\nBy SEE exponent alpha and communication step (all programs):\n\n| alpha |");
+    for h in H_VALUES {
+        let _ = write!(s, " h = {} |", fmt_h(h));
+    }
+    s.push_str("\n|---|");
+    for _ in H_VALUES {
+        s.push_str("---|");
+    }
+    s.push('\n');
+    for alpha in ALPHA_VALUES {
+        let _ = write!(s, "| {alpha} |");
+        for h in H_VALUES {
+            let a: Vec<Agreement> = results
+                .iter()
+                .filter(|r| r.cell.alpha == alpha && r.cell.h == h)
+                .filter_map(|r| r.agreement)
+                .collect();
+            let within = a.iter().filter(|a| a.within()).count();
+            let worst = a.iter().map(|a| a.worst()).fold(0.0, f64::max);
+            if a.is_empty() {
+                s.push_str(" — |");
+            } else {
+                let _ = write!(s, " {} (worst {:.1e}) |", pct(within, a.len()), worst);
+            }
+        }
+        s.push('\n');
+    }
+    let mut worst: Vec<&CellResult> = results.iter().filter(|r| r.agreement.is_some()).collect();
+    worst.sort_by(|a, b| {
+        b.agreement
+            .unwrap()
+            .worst()
+            .total_cmp(&a.agreement.unwrap().worst())
+    });
+    s.push_str("\nThe ten worst cells (t: the communication point of the largest deviation):\n\n| cell | stress | at t | active_stress | at t |\n|---|---|---|---|---|\n");
+    for r in worst.iter().take(10) {
+        let a = r.agreement.unwrap();
+        let _ = writeln!(
+            s,
+            "| {} | {:.2e} | {} | {:.2e} | {} |",
+            r.cell.key(),
+            a.stress,
+            fmt_t(a.stress_t),
+            a.active,
+            fmt_t(a.active_t)
+        );
+    }
+    // ---- Iterations
+    s.push_str("\n## Solver work per communication step (run at h)\n\nMean (max) over every step of the cells: Newton iterations of the lateral solve (evaluations of the law), CE–SEE iterations summed over them, internal substeps.\n\n| alpha | h | lateral iterations | CE–SEE iterations | substeps |\n|---|---|---|---|---|\n");
+    for alpha in ALPHA_VALUES {
+        for h in H_VALUES {
+            let sel: Vec<&CellResult> = results
+                .iter()
+                .filter(|r| r.cell.alpha == alpha && r.cell.h == h)
+                .collect();
+            let agg = |f: &dyn Fn(&Run) -> Counts| {
+                let mut c = Counts::default();
+                for r in &sel {
+                    let x = f(&r.coarse);
+                    c.sum += x.sum;
+                    c.n += x.n;
+                    c.max = c.max.max(x.max);
+                }
+                c.mean()
+                    .map_or("—".to_string(), |m| format!("{m:.2} ({})", c.max))
+            };
+            let _ = writeln!(
+                s,
+                "| {alpha} | {} | {} | {} | {} |",
+                fmt_h(h),
+                agg(&|r| r.iterations),
+                agg(&|r| r.ce_iterations),
+                agg(&|r| r.substeps)
+            );
+        }
+    }
+    // ---- Before / after
+    if let Some((path, rows)) = baseline {
+        s.push_str(&before_after(results, path, rows));
+    }
+    // ---- Matrix view
+    s.push_str(
+        "\n## Every cell\n\nOne block per program and parameter set; rows D and alpha, columns S and h \
+         (h = 1e-6, 1e-4, 1e-3, 1e-2, 0.1 in each S group). `.` completed, every check passed, agrees with \
+         the run at h/100; `n` the same with no reference run (not affordable); `r` the same after a master \
+         retry of a discarded step; `a` completed, every check passed, deviates from the run at h/100 by \
+         more than the tolerance; `D` discarded (explained above); `X` fails an acceptance criterion.\n",
+    );
+    for m in &models {
+        for sc in Scenario::ALL {
+            for ps in ParamSet::ALL {
+                let block: Vec<&CellResult> = results
+                    .iter()
+                    .filter(|r| r.model == *m && r.cell.scenario == sc && r.cell.params == ps)
+                    .collect();
+                if block.is_empty() {
+                    continue;
+                }
+                let _ = writeln!(s, "\n{m} `{}` `{}`\n```", sc.name(), ps.name());
+                let _ = write!(s, "{:<22}", "");
+                for sv in S_VALUES {
+                    let _ = write!(s, "| S={:<8}", format!("{sv:e}"));
+                }
+                s.push('\n');
+                for d in D_VALUES {
+                    for alpha in ALPHA_VALUES {
+                        let _ = write!(s, "{:<22}", format!("D={d:e} alpha={alpha}"));
+                        for sv in S_VALUES {
+                            s.push_str("| ");
+                            for h in H_VALUES {
+                                let c = block
+                                    .iter()
+                                    .find(|r| {
+                                        r.cell.d_comp == d
+                                            && r.cell.alpha == alpha
+                                            && r.cell.s == sv
+                                            && r.cell.h == h
+                                    })
+                                    .map_or(' ', |r| code(r));
+                                s.push(c);
+                                s.push(' ');
+                            }
+                        }
+                        s.push('\n');
+                    }
+                }
+                s.push_str("```\n");
+            }
+        }
+    }
+    s
+}
+
+/// Before/after against a baseline CSV (same grid).
+fn before_after(results: &[CellResult], path: &std::path::Path, rows: &[Row]) -> String {
+    let mut s = String::new();
+    let key = |m: &str, sc: &str, ps: &str, d: &str, a: &str, sv: &str, h: &str| {
+        format!("{m} {sc} {ps} {d} {a} {sv} {h}")
+    };
+    let base: BTreeMap<String, &Row> = rows
+        .iter()
+        .map(|r| {
+            (
+                key(
+                    &r["model"],
+                    &r["scenario"],
+                    &r["params"],
+                    &r["D"],
+                    &r["alpha"],
+                    &r["S"],
+                    &r["h"],
+                ),
+                r,
+            )
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "\n## Before and after (baseline `{}`)\n\nThe same cells in the baseline run (before the fixes of \
+         issue 4 §2) and now. Agreement: cells within the tolerance of those compared, and the worst \
+         deviation; cost: the cells' wall time (run at h and reference run).\n\n\
+         | h | within tolerance before | after | worst before | worst after | mean lateral iterations before → after | seconds before → after |\n|---|---|---|---|---|---|---|",
+        path.display()
+    );
+    for h in H_VALUES {
+        let (mut nb, mut wb, mut na, mut wa, mut n) = (0, 0.0f64, 0, 0.0f64, 0);
+        let (mut ib, mut ia, mut sb, mut sa, mut ni) = (0.0, 0.0, 0.0, 0.0, 0);
+        for r in results.iter().filter(|r| r.cell.h == h) {
+            let c = &r.cell;
+            let k = key(
+                r.model,
+                &c.scenario.name(),
+                c.params.name(),
+                &format!("{:e}", c.d_comp),
+                &c.alpha.to_string(),
+                &format!("{:e}", c.s),
+                &format!("{:e}", c.h),
+            );
+            let Some(b) = base.get(&k) else { continue };
+            let num = |col: &str| b.get(col).and_then(|v| v.parse::<f64>().ok());
+            sb += num("seconds").unwrap_or(0.0);
+            sa += r.coarse.seconds + r.fine.as_ref().map_or(0.0, |f| f.seconds);
+            if let (Some(x), Some(y)) = (num("iterations_mean"), r.coarse.iterations.mean()) {
+                ib += x;
+                ia += y;
+                ni += 1;
+            }
+            if let (Some(x), Some(y)) = (num("agree_stress"), r.agreement) {
+                let before = x.max(num("agree_active").unwrap_or(0.0));
+                n += 1;
+                nb += usize::from(before <= AGREEMENT_TOL);
+                wb = wb.max(before);
+                na += usize::from(y.within());
+                wa = wa.max(y.worst());
+            }
+        }
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.1e} | {:.1e} | {} | {:.0} → {:.0} |",
+            fmt_h(h),
+            pct(nb, n),
+            pct(na, n),
+            wb,
+            wa,
+            if ni > 0 {
+                format!("{:.2} → {:.2}", ib / ni as f64, ia / ni as f64)
+            } else {
+                "—".into()
+            },
+            sb,
+            sa
+        );
+    }
+    s
+}
