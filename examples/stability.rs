@@ -620,15 +620,23 @@ fn before_after(results: &[CellResult], path: &std::path::Path, rows: &[Row]) ->
         .collect();
     let _ = writeln!(
         s,
-        "\n## Before and after (baseline `{}`)\n\nThe same cells in the baseline run (before the fixes of \
-         issue 4 §2) and now. Agreement: cells within the tolerance of those compared, and the worst \
-         deviation; cost: the cells' wall time (run at h and reference run).\n\n\
-         | h | within tolerance before | after | worst before | worst after | mean lateral iterations before → after | seconds before → after |\n|---|---|---|---|---|---|---|",
+        "\n## Before and after (baseline `{}`)\n\nThe same cells in the baseline run (the matrix as of the \
+         commit before the fixes of issue 4 §2) and now: agreement with the run at h/100 (cells within the \
+         tolerance of those compared, and the worst deviation), discarded steps of the run at h, and the \
+         solver work per communication step of the run at h (means over every step of the \
+         cells; the substeps and the CE–SEE iterations of the baseline are 1 and its iterations). Wall \
+         times are not compared here: the two runs were made at different loads of the shared machine \
+         (see BENCHMARKS.md for the per-step cost measured in one session).\n\n\
+         | h | within tolerance before | after | worst before | worst after | discarded steps before → after \
+         | lateral iterations before → after | CE–SEE iterations before → after | substeps after |\n\
+         |---|---|---|---|---|---|---|---|---|",
         path.display()
     );
     for h in H_VALUES {
         let (mut nb, mut wb, mut na, mut wa, mut n) = (0, 0.0f64, 0, 0.0f64, 0);
-        let (mut ib, mut ia, mut sb, mut sa, mut ni) = (0.0, 0.0, 0.0, 0.0, 0);
+        let (mut db, mut da) = (0u64, 0u64);
+        let mut iters = [Counts::default(); 4];
+        let mut subs = Counts::default();
         for r in results.iter().filter(|r| r.cell.h == h) {
             let c = &r.cell;
             let k = key(
@@ -642,13 +650,24 @@ fn before_after(results: &[CellResult], path: &std::path::Path, rows: &[Row]) ->
             );
             let Some(b) = base.get(&k) else { continue };
             let num = |col: &str| b.get(col).and_then(|v| v.parse::<f64>().ok());
-            sb += num("seconds").unwrap_or(0.0);
-            sa += r.coarse.seconds + r.fine.as_ref().map_or(0.0, |f| f.seconds);
-            if let (Some(x), Some(y)) = (num("iterations_mean"), r.coarse.iterations.mean()) {
-                ib += x;
-                ia += y;
-                ni += 1;
+            db += num("discards").unwrap_or(0.0) as u64;
+            da += r.coarse.discards.len() as u64;
+            let steps = num("steps").unwrap_or(0.0);
+            for (i, col) in ["iterations_mean", "ce_iterations_mean"].iter().enumerate() {
+                if let Some(m) = num(col) {
+                    iters[i].sum += (m * steps).round() as u64;
+                    iters[i].n += steps as u64;
+                }
             }
+            for (i, x) in [r.coarse.iterations, r.coarse.ce_iterations]
+                .iter()
+                .enumerate()
+            {
+                iters[2 + i].sum += x.sum;
+                iters[2 + i].n += x.n;
+            }
+            subs.sum += r.coarse.substeps.sum;
+            subs.n += r.coarse.substeps.n;
             if let (Some(x), Some(y)) = (num("agree_stress"), r.agreement) {
                 let before = x.max(num("agree_active").unwrap_or(0.0));
                 n += 1;
@@ -658,21 +677,20 @@ fn before_after(results: &[CellResult], path: &std::path::Path, rows: &[Row]) ->
                 wa = wa.max(y.worst());
             }
         }
+        let m = |c: &Counts| c.mean().map_or("—".to_string(), |v| format!("{v:.2}"));
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1e} | {:.1e} | {} | {:.0} → {:.0} |",
+            "| {} | {} | {} | {:.1e} | {:.1e} | {db} → {da} | {} → {} | {} → {} | {} |",
             fmt_h(h),
             pct(nb, n),
             pct(na, n),
             wb,
             wa,
-            if ni > 0 {
-                format!("{:.2} → {:.2}", ib / ni as f64, ia / ni as f64)
-            } else {
-                "—".into()
-            },
-            sb,
-            sa
+            m(&iters[0]),
+            m(&iters[2]),
+            m(&iters[1]),
+            m(&iters[3]),
+            m(&subs),
         );
     }
     s

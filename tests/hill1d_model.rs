@@ -278,33 +278,38 @@ fn a_length_the_law_cannot_evaluate_is_named_in_the_error() {
 }
 
 #[test]
-fn an_overflowing_volume_change_is_discarded_with_its_cause() {
+fn fast_length_jumps_with_a_soft_volume_stay_bounded() {
     // D = 1e-4 (bulk modulus 2e4 Pa) against ~1e6 Pa of active stress, the
-    // length jumping 0.6 <-> 1.6 every microsecond: the volume change grows
-    // until the matrix term overflows. Found by a sweep of issue 4's grid.
+    // length jumping 0.6 <-> 1.6 every microsecond. Found by a sweep of issue
+    // 4's grid: with one backward-Euler CE–SEE update per step, the volume
+    // ratio drifted from step to step until the matrix term overflowed (a
+    // discard after a few thousand steps, blamed on the law). It was the
+    // discretization: with the error-controlled substeps every step completes
+    // and the motion settles into a periodic one, J swinging between ~0.30
+    // and ~4.6 (measured 0.3010 and 4.5739).
     let mut m = Hill1D::new();
     m.set_real(Var::Param(ParamId::Dcomp), 1e-4).unwrap();
     m.set_real(Var::Param(ParamId::S), 1e5).unwrap();
     m.initialize().unwrap();
     m.set_real(Var::Activation, 1.0).unwrap();
+    let mut last = [0.0; 4];
     for i in 0..20_000 {
-        m.set_real(Var::Length, DEFAULT_L0 * if i % 2 == 0 { 0.6 } else { 1.6 })
-            .unwrap();
-        let before = m.clone();
-        match m.do_step(i as f64 * 1e-6, 1e-6) {
-            Ok(()) => assert!(out(&m, Output::Force).is_finite()),
-            Err(StepError::Discard(msg)) => {
-                assert!(
-                    msg.contains("volume change") && msg.contains("D = 0.0001"),
-                    "{msg}"
-                );
-                assert_eq!(m, before, "a discarded step changes nothing");
-                return;
-            }
-            Err(e) => panic!("{e:?}"),
-        }
+        let lambda = if i % 2 == 0 { 0.6 } else { 1.6 };
+        m.set_real(Var::Length, DEFAULT_L0 * lambda).unwrap();
+        m.do_step(i as f64 * 1e-6, 1e-6)
+            .unwrap_or_else(|e| panic!("step {i}: {e:?}"));
+        let j = (lambda / out(&m, Output::FibreStretch)).powi(3);
+        assert!((0.25..5.0).contains(&j), "step {i}: J = {j}");
+        assert!(out(&m, Output::Force).is_finite());
+        last = [last[1], last[2], last[3], out(&m, Output::Force)];
     }
-    panic!("expected the law to overflow within 20,000 steps");
+    // Periodic at the end: each force repeats two steps later.
+    for k in 0..2 {
+        assert!(
+            (last[k] - last[k + 2]).abs() <= 1e-6 * last[k].abs(),
+            "{last:?}"
+        );
+    }
 }
 
 #[test]

@@ -7,11 +7,18 @@
 //! 1. the activation level follows da/dt = S (u − a) exactly for the command
 //!    held over the step (or linear over the step when an input derivative is
 //!    set); with `activation_dynamics = false` the level is the command;
-//! 2. the length moves from where it is to the input `length` — or to
-//!    `length + h · dlength/dt` when the importer set an input derivative —
-//!    and the step ends there (CE rate from the stretch change over h);
-//! 3. the uniaxial state is solved at the end of the step (lateral stretch
-//!    from σ22 = 0, CE–SEE solve inside) and committed only on success.
+//! 2. the length moves linearly from where it is to the input `length` — or
+//!    to `length + h · dlength/dt` when the importer set an input derivative
+//!    — and the step ends there;
+//! 3. the uniaxial state (lateral stretch from σ22 = 0, CE–SEE solve inside)
+//!    is solved at the end of the step, in substeps when the error estimate
+//!    of the CE–SEE update asks for them ([`piece_error`], `solve_step`):
+//!    each substep is MODEL_NOTES' backward-Euler step over its own length
+//!    (CE rate from the CE stretch change over it), so a step that needs no
+//!    substep — the usual case with smooth inputs — is exactly that step over
+//!    h; stiff transients (a stiff SEE, fast activation, length jumps) get
+//!    as many as keep the estimated local error of the SEE stress below
+//!    [`SUBSTEP_RTOL`]·sigma0. The state is committed only on success.
 //!
 //! At initialization the muscle is in isometric equilibrium at its initial
 //! length and `initial_activation`.
@@ -22,6 +29,7 @@ use crate::fmi2::{
     VarType, Variability,
 };
 use crate::law::activation::{activation_step, Decay};
+use crate::law::force_length::force_length;
 use crate::law::hill_fibre::ce_stretch;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
 use crate::law::series_element::see_stiffness;
@@ -125,6 +133,125 @@ const N_OUT: usize = OUTPUTS.len();
 const IN_ACTIVATION: usize = 0;
 const IN_LENGTH: usize = 1;
 
+/// Tolerance of the substep control, relative to sigma0: the estimated local
+/// error of the CE–SEE update over one substep, as SEE stress, stays below
+/// `SUBSTEP_RTOL · sigma0` ([`piece_error`]).
+pub const SUBSTEP_RTOL: f64 = 1e-3;
+
+/// Most tries (accepted and rejected substeps) per step before the rest of
+/// the step is taken in one piece.
+pub const MAX_SUBSTEPS: u32 = 10_000;
+
+/// Estimated local error of the backward-Euler CE–SEE update over a piece of
+/// length `hs`, as SEE stress [Pa]. `start` is the piece's start: the CE
+/// rate of the piece before it and the activation level; `u` and `a` the
+/// solution at the piece's end, `stretch_rate` the stretch rate λ̇ over it.
+///
+/// The CE stretch λm obeys the ODE λ̇m = r(t, λm) defined by
+/// σ_s(λs) = σ0 a f_λ f_v(λ̇m) with λs = ((1 + k) λ̄f − λm)/k; each piece
+/// takes one backward-Euler step of it. The local error of backward Euler is
+/// (hs/2)(r(end) − r(start)) + O(hs³) (its difference from the trapezoidal
+/// rule). The rate at the end is the piece's backward-Euler rate; the rate at
+/// the start is the previous piece's, which satisfies the ODE at the start
+/// exactly. λ̄f is given, so the error of λs is that of λm over k, and of
+/// σ_s, σ_s' = alpha (σ_s + beta) times that. The special cases:
+/// - the CE can carry nothing at the end (σ0 a f_λ = 0): σ_s = 0 there,
+///   exactly as in the exact solution: no error;
+/// - the SEE ends the piece slack (σ_s = 0 with σ0 a f_λ > 0: the fibre
+///   shortens faster than the CE can, lambda_dot_min): exact if it is still
+///   slack at the end, i.e. if the CE rate the kinematics ask for there,
+///   (1 + k) dλ̄f/dt = (1 + k) (dλ̄f/dλ) λ̇ (`stretch_rate` = λ̇ over the
+///   piece), is still below lambda_dot_min. If not — the shortening stopped
+///   inside the piece, as when the volume takes up the length change — the
+///   SEE has taken up load again by the end, and the error is estimated as
+///   below with that kinematic rate in place of the backward-Euler one;
+/// - a piece that starts from a slack SEE takes the rate the kinematics set
+///   there ((1 + k) dλ̄f/dt, below lambda_dot_min) as its start rate: where
+///   the SEE takes up load inside the piece the estimate is large, and the
+///   piece is cut until that moment is resolved (the rate is continuous
+///   there when λ̄f(t) is smooth);
+/// - σ_s stays within [0, f_v,max σ0 a], so no error exceeds that range.
+pub fn piece_error(
+    p: &Params,
+    start: (f64, f64),
+    u: &Uniaxial,
+    a: f64,
+    stretch_rate: f64,
+    hs: f64,
+) -> f64 {
+    let (start_rate, start_a) = start;
+    let f = &u.fibre;
+    let mut rate = f.lambda_dot_m;
+    if f.sigma_see == 0.0 {
+        let drive = p.sigma0 * a * force_length(u.lambda_f, p.lambda_opt).0;
+        if drive == 0.0 {
+            return 0.0;
+        }
+        let kinematic = (1.0 + p.k) * u.d_dlambda.lambda_f * stretch_rate;
+        if kinematic <= p.lambda_dot_min {
+            return 0.0;
+        }
+        rate = kinematic;
+    }
+    // The largest SEE stress the CE can hold over the piece, and the SEE's
+    // stiffness there: an error of λm stays in the state and turns into this
+    // much stress error once the SEE is stretched that far.
+    let cap = p.fv_max() * p.sigma0 * a.max(start_a);
+    let estimate =
+        see_stiffness(cap, p.alpha, p.beta) * hs / (2.0 * p.k) * (rate - start_rate).abs();
+    estimate.min(cap)
+}
+
+/// How many halvings bring a piece within `factor` (< 1) of its length:
+/// the smallest n with 2^(−n) ≤ factor.
+fn halvings(factor: f64) -> u32 {
+    let mut n = 0;
+    let mut f = 1.0;
+    while f > factor && n < 64 {
+        f *= 0.5;
+        n += 1;
+    }
+    n
+}
+
+/// How many doublings fit in `factor` (≥ 0): the largest n with 2^n ≤ factor.
+fn doublings(factor: f64) -> u32 {
+    let mut n = 0;
+    let mut f = 2.0;
+    while f <= factor && n < 64 {
+        f *= 2.0;
+        n += 1;
+    }
+    n
+}
+
+/// Σ cᵢ sᵢ over the terms with cᵢ ≠ 0.
+fn combine(terms: &[(&Sensitivity, f64)]) -> Sensitivity {
+    let mut r = Sensitivity::default();
+    for &(s, c) in terms {
+        if c != 0.0 {
+            r.q += c * s.q;
+            r.j += c * s.j;
+            r.mu += c * s.mu;
+            r.tau11 += c * s.tau11;
+            r.lambda_f += c * s.lambda_f;
+            r.lambda_s += c * s.lambda_s;
+        }
+    }
+    r
+}
+
+/// A solved step ([`Hill1D::solve_step`]): the state at its end, the level
+/// and ∂a/∂u there, the total sensitivities of the end state with respect to
+/// the inputs (activation, length), and the solver counts.
+struct Stepped {
+    u: Uniaxial,
+    a: f64,
+    da_du: f64,
+    sens: [Sensitivity; 2],
+    stats: StepStatistics,
+}
+
 /// The 1D Hill muscle FMU model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Hill1D {
@@ -144,6 +271,10 @@ pub struct Hill1D {
     // Committed state.
     activation_level: f64,
     history: FibreHistory,
+    /// The CE stretch rate λ̇m of the last (sub)step: the rate at the start of
+    /// the next step, for the error estimate of its CE–SEE update (0 at the
+    /// isometric start).
+    ce_rate: f64,
     lambda: f64,
     /// q = J^(1/3) of the last solve.
     q: f64,
@@ -167,9 +298,12 @@ pub struct Hill1D {
 /// stability`). Not part of the FMU's state.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StepStatistics {
-    /// Solves of the uniaxial state the step took (1: the step was solved in
-    /// one piece).
+    /// Substeps the step was solved in (1: in one piece; see the module
+    /// docs).
     pub substeps: u32,
+    /// Substeps tried and rejected by the error estimate (their solves are
+    /// counted in the iterations below).
+    pub rejected_substeps: u32,
     /// Newton iterations of the lateral solve, summed over the substeps
     /// (each one evaluation of the law; a count above 100 in one solve means
     /// the bracketed fallback ran).
@@ -198,12 +332,13 @@ impl PartialEq for Diagnostics {
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 struct Jacobian {
     /// Per input (activation, length): total sensitivities of the uniaxial
-    /// state with respect to the input's driver (a or λ).
+    /// state at the end of the step with respect to the input (through every
+    /// substep of the step).
     sens: [Sensitivity; 2],
-    /// dP/d(driver).
+    /// dP/d(input).
     dnominal: [f64; 2],
-    /// d(driver)/d(input): ∂a/∂u and 1/L0.
-    scale: [f64; 2],
+    /// d(activation level)/d(input): ∂a/∂u and 0.
+    dlevel: [f64; 2],
     tau11: f64,
     j: f64,
     /// dσ_s/dλs.
@@ -216,20 +351,19 @@ impl Jacobian {
         let s = &self.sens[column];
         let dnom = self.dnominal[column];
         let dsee = self.dsigma_see * s.lambda_s;
-        let d = match out {
+        match out {
             Output::Force => dnom * area,
             Output::Stress => dnom,
             // σ11 = τ11 / J.
             Output::CauchyStress => cauchy_sensitivity(self.tau11, self.j, s),
-            Output::ActivationLevel => f64::from(u8::from(column == IN_ACTIVATION)),
+            Output::ActivationLevel => self.dlevel[column],
             Output::FibreStretch => s.lambda_f,
             // λm = (1 + k) λ̄f − k λs.
             Output::CeStretch => ce_stretch(k, s.lambda_f, s.lambda_s),
             Output::SeeStretch => s.lambda_s,
             Output::ActiveStress => dsee,
             Output::PassiveStress => dnom - dsee,
-        };
-        d * self.scale[column]
+        }
     }
 
     fn to_values(self) -> Vec<f64> {
@@ -238,7 +372,7 @@ impl Jacobian {
             v.extend([s.q, s.j, s.mu, s.tau11, s.lambda_f, s.lambda_s]);
         }
         v.extend(self.dnominal);
-        v.extend(self.scale);
+        v.extend(self.dlevel);
         v.extend([self.tau11, self.j, self.dsigma_see]);
         v
     }
@@ -258,7 +392,7 @@ impl Jacobian {
         Some(Jacobian {
             sens: [sens(0), sens(6)],
             dnominal: [v[12], v[13]],
-            scale: [v[14], v[15]],
+            dlevel: [v[14], v[15]],
             tau11: v[16],
             j: v[17],
             dsigma_see: v[18],
@@ -332,8 +466,15 @@ impl Predictor {
 
 impl Hill1D {
     /// Outputs and the data of their partials (the Jacobian) from a solved
-    /// uniaxial state; `da_du` is ∂a/∂u of the step map.
-    fn evaluate(&self, u: &Uniaxial, a: f64, da_du: f64) -> ([f64; N_OUT], Jacobian) {
+    /// uniaxial state; `sens` are its total sensitivities with respect to the
+    /// inputs (activation, length) and `da_du` is ∂a/∂u of the step map.
+    fn evaluate(
+        &self,
+        u: &Uniaxial,
+        a: f64,
+        sens: [Sensitivity; 2],
+        da_du: f64,
+    ) -> ([f64; N_OUT], Jacobian) {
         let fibre = &u.fibre;
         let sigma_s = fibre.sigma_see;
         let nominal = u.nominal_stress();
@@ -355,13 +496,15 @@ impl Hill1D {
             dsigma_see: see_stiffness(sigma_s, self.params.alpha, self.params.beta),
             ..Jacobian::default()
         };
-        // Chain rule: λ = L / L0, so d/dL = (1/L0) d/dλ; d/du = (∂a/∂u) d/da.
-        jacobian.sens[IN_LENGTH] = u.d_dlambda;
-        jacobian.dnominal[IN_LENGTH] = u.dnominal_dlambda();
-        jacobian.scale[IN_LENGTH] = 1.0 / self.l0;
-        jacobian.sens[IN_ACTIVATION] = u.d_dactivation;
-        jacobian.dnominal[IN_ACTIVATION] = u.dnominal_dactivation();
-        jacobian.scale[IN_ACTIVATION] = da_du;
+        // P = τ11 / λ: dP = dτ11 / λ − τ11 dλ / λ², with dλ/dL = 1/L0 (the
+        // stretch at the end of the step is L/L0) and dλ/du = 0.
+        let dlambda = [0.0, 1.0 / self.l0];
+        for c in [IN_ACTIVATION, IN_LENGTH] {
+            jacobian.dnominal[c] =
+                sens[c].tau11 / u.lambda - u.tau11 * dlambda[c] / (u.lambda * u.lambda);
+        }
+        jacobian.sens = sens;
+        jacobian.dlevel = [da_du, 0.0];
         (values, jacobian)
     }
 
@@ -374,6 +517,7 @@ impl Hill1D {
         h: Option<f64>,
         outputs: [f64; N_OUT],
         jacobian: Jacobian,
+        statistics: StepStatistics,
     ) {
         let step = h.map(|h| {
             (
@@ -387,17 +531,200 @@ impl Hill1D {
         self.predict = self.predict.after(u, step);
         self.activation_level = a;
         self.history = u.fibre.history;
+        // A step of a few ulps makes the rate overflow; only the error
+        // estimate of the next step reads it, and ±f64::MAX says the same.
+        self.ce_rate = match u.fibre.lambda_dot_m {
+            r if r.is_nan() => 0.0,
+            r => r.clamp(-f64::MAX, f64::MAX),
+        };
         self.lambda = u.lambda;
         self.q = u.q;
         self.outputs = outputs;
         self.jacobian = jacobian;
-        self.statistics = Diagnostics(StepStatistics {
-            substeps: 1,
-            lateral_iterations: u.iterations,
-            ce_iterations: u.ce_iterations,
-        });
+        self.statistics = Diagnostics(statistics);
     }
 
+    /// The activation level `tau` into the step and ∂a/∂u: the exact dynamics
+    /// for the command held (or linear) over the step, or without dynamics the
+    /// command itself (clamped into [0, 1]). `decay` is e^(−S tau).
+    fn level(&self, tau: f64, decay: f64) -> (f64, f64) {
+        if self.activation_dynamics {
+            activation_step(
+                self.activation_level,
+                self.command,
+                self.command_rate,
+                self.params.s,
+                tau,
+                decay,
+            )
+        } else {
+            let a = self.command + tau * self.command_rate;
+            if (0.0..=1.0).contains(&a) {
+                (a, 1.0)
+            } else {
+                (a.clamp(0.0, 1.0), 0.0)
+            }
+        }
+    }
+
+    /// The step from the committed state to stretch `lambda_end` over `h`,
+    /// in substeps whose size the error estimate of the CE–SEE update
+    /// controls ([`piece_error`]). Within the step the stretch moves linearly
+    /// to `lambda_end` (the co-simulation convention) and the activation level
+    /// follows [`Hill1D::level`]; each substep is the backward-Euler step of
+    /// MODEL_NOTES over its own length. The first try is the whole step. A
+    /// substep whose estimate exceeds [`SUBSTEP_RTOL`]·sigma0 is tried again
+    /// shorter, and after an accepted one the next may be longer: the usual
+    /// controller of a first-order method, h_new = h · 0.9 (tol/err)^(1/2),
+    /// rounded down to the dyadic sizes h/2^k that fit the dyadic grid of the
+    /// step, so that the substeps tile the step exactly and are piecewise
+    /// constant in the inputs (the step map is then smooth between switches
+    /// of the pattern, and its partial derivatives — chained through the
+    /// substeps — are those of the map). After [`MAX_SUBSTEPS`] tries the rest
+    /// of the step is taken in one piece (backward Euler is stable for any
+    /// length: the result stays bounded, only less accurate). `a_end` is the
+    /// level at the end of the step. Changes nothing (the caller commits).
+    fn solve_step(&self, h: f64, lambda_end: f64, a_end: (f64, f64)) -> Result<Stepped, StepError> {
+        // Positions within the step in units of h / 2^FINEST.
+        const FINEST: u32 = 40;
+        const WHOLE: u64 = 1 << FINEST;
+        let p = &self.params;
+        let tol = SUBSTEP_RTOL * p.sigma0;
+        let (lambda0, a0) = (self.lambda, self.activation_level);
+        let mut stats = StepStatistics::default();
+        // The start of the current piece: position in the step, stretch,
+        // level, fibre history, CE rate and the last accepted solve.
+        let (mut pos, mut lam, mut a) = (0u64, lambda0, a0);
+        let (mut hist, mut rate) = (self.history, self.ce_rate);
+        // The last accepted piece: (q, λs) at its start and end, its length.
+        let mut prev: Option<([f64; 2], [f64; 2], f64)> = None;
+        // d λm / d(input) of the history (the start of the piece): how the
+        // earlier pieces made it depend on this step's inputs.
+        let mut chain = [0.0; 2];
+        // The piece is h / 2^level long.
+        let mut level = 0u32;
+        let mut tries = 0u32;
+        loop {
+            tries += 1;
+            let forced = tries >= MAX_SUBSTEPS;
+            let end = if forced {
+                WHOLE
+            } else {
+                pos + (WHOLE >> level)
+            };
+            let last = end == WHOLE;
+            let frac = end as f64 / WHOLE as f64;
+            let hs_j = if forced {
+                h - h * (pos as f64 / WHOLE as f64)
+            } else {
+                h / (1u64 << level) as f64
+            };
+            let lam_j = if last {
+                lambda_end
+            } else {
+                lambda0 + (lambda_end - lambda0) * frac
+            };
+            let (a_j, da_du_j) = if last {
+                a_end
+            } else {
+                let tau = h * frac;
+                self.level(tau, (-p.s * tau).exp())
+            };
+            let (dl, da) = (lam_j - lam, a_j - a);
+            // Starting points only (they change the cost, not the result).
+            let (q_guess, ls_guess) = match &prev {
+                None => (
+                    Predictor::predict(&self.predict.q, self.q, dl, da, hs_j),
+                    Predictor::predict(&self.predict.lambda_s, hist.lambda_s, dl, da, hs_j),
+                ),
+                // Linear in time from the last piece.
+                Some((x0, x1, hp)) => {
+                    let r = hs_j / hp;
+                    (x1[0] + (x1[0] - x0[0]) * r, x1[1] + (x1[1] - x0[1]) * r)
+                }
+            };
+            let start = FibreHistory {
+                // The CE–SEE solve's starting point (module docs of hill_fibre).
+                lambda_s: ls_guess.max(1.0),
+                lambda_m: hist.lambda_m,
+            };
+            let u = solve_uniaxial(p, lam_j, a_j, &start, FibreRate::Step { h: hs_j }, q_guess)
+                .map_err(|e| StepError::Discard(self.unsolvable(lam_j * self.l0, &e.0)))?;
+            stats.lateral_iterations = stats.lateral_iterations.saturating_add(u.iterations);
+            stats.ce_iterations = stats.ce_iterations.saturating_add(u.ce_iterations);
+            let err = piece_error(p, (rate, a), &u, a_j, dl / hs_j, hs_j);
+            // A piece of h/2^FINEST is taken whatever its estimate (an event
+            // faster than that, like a SEE snapping slack, is not resolved by
+            // shorter pieces), and so is one that cannot be halved in binary64
+            // (a step of a few ulps).
+            let acceptable = err <= tol; // false for NaN
+            if !forced && level < FINEST && hs_j * 0.5 >= f64::MIN_POSITIVE && !acceptable {
+                // Too large (or not finite): the same start, a shorter piece,
+                // at least half as long.
+                stats.rejected_substeps += 1;
+                level += if err.is_finite() {
+                    halvings(0.9 * (tol / err).sqrt()).max(1)
+                } else {
+                    4
+                };
+                level = level.min(FINEST);
+                continue;
+            }
+            u.fibre
+                .history
+                .check_physical(p.k, u.lambda_f)
+                .map_err(|e| StepError::Discard(format!("length = {} m: {e}", lam_j * self.l0)))?;
+            // Chain rule through the piece: its state depends on the inputs
+            // through its stretch (d λ_j/dL = frac/L0), its level (∂a_j/∂u)
+            // and the history's CE stretch (`chain`).
+            let drivers = [[da_du_j, 0.0], [0.0, frac / self.l0]];
+            let mut sens = [Sensitivity::default(); 2];
+            for c in [IN_ACTIVATION, IN_LENGTH] {
+                sens[c] = combine(&[
+                    (&u.d_dactivation, drivers[c][0]),
+                    (&u.d_dlambda, drivers[c][1]),
+                    (&u.d_dhistory, chain[c]),
+                ]);
+                chain[c] = ce_stretch(p.k, sens[c].lambda_f, sens[c].lambda_s);
+            }
+            stats.substeps += 1;
+            if last {
+                return Ok(Stepped {
+                    u,
+                    a: a_j,
+                    da_du: da_du_j,
+                    sens,
+                    stats,
+                });
+            }
+            // The next piece: up to 4x longer, as far as the estimate allows
+            // and the grid of its size admits (its start a multiple of it).
+            let factor = if err > 0.0 {
+                0.9 * (tol / err).sqrt()
+            } else {
+                f64::INFINITY
+            };
+            let mut next = level.saturating_sub(doublings(factor).min(2));
+            while next < level && end % (WHOLE >> next) != 0 {
+                next += 1;
+            }
+            level = next;
+            (pos, lam, a) = (end, lam_j, a_j);
+            (hist, rate) = (u.fibre.history, u.fibre.lambda_dot_m);
+            if !rate.is_finite() {
+                rate = if rate.is_nan() {
+                    0.0
+                } else {
+                    rate.clamp(-f64::MAX, f64::MAX)
+                };
+            }
+            let (q0, ls0) = match prev {
+                Some((_, x1, _)) => (x1[0], x1[1]),
+                None => (self.q, self.history.lambda_s),
+            };
+            prev = Some(([q0, ls0], [u.q, u.fibre.history.lambda_s], hs_j));
+        }
+    }
     /// Solver counts of the last completed step (or of the initialization).
     pub fn last_step_statistics(&self) -> StepStatistics {
         self.statistics.0
@@ -695,6 +1022,7 @@ impl Model for Hill1D {
             length_rate: 0.0,
             activation_level: 0.0,
             history: FibreHistory::REST,
+            ce_rate: 0.0,
             lambda: 1.0,
             q: 1.0,
             predict: Predictor::default(),
@@ -835,11 +1163,21 @@ impl Model for Hill1D {
             .history
             .check_physical(self.params.k, u.lambda_f)
             .map_err(|e| ModelError(format!("length = {length} m: {e}")))?;
-        let (outputs, jacobian) = self.evaluate(&u, a, da_du);
+        let sens = [
+            combine(&[(&u.d_dactivation, da_du)]),
+            combine(&[(&u.d_dlambda, 1.0 / self.l0)]),
+        ];
+        let (outputs, jacobian) = self.evaluate(&u, a, sens, da_du);
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(ModelError(self.unsolvable(length, "a non-finite output")));
         }
-        self.commit(&u, a, None, outputs, jacobian);
+        let statistics = StepStatistics {
+            substeps: 1,
+            rejected_substeps: 0,
+            lateral_iterations: u.iterations,
+            ce_iterations: u.ce_iterations,
+        };
+        self.commit(&u, a, None, outputs, jacobian, statistics);
         Ok(())
     }
 
@@ -853,51 +1191,21 @@ impl Model for Hill1D {
         // Kept only when the step is accepted: on a discard the model must
         // stay unchanged.
         let decay = Decay::for_step(self.decay, self.params.s, h);
-        let (a, da_du) = if self.activation_dynamics {
-            activation_step(
-                self.activation_level,
-                self.command,
-                self.command_rate,
-                self.params.s,
-                h,
-                decay.value,
-            )
-        } else {
-            let a = self.command + h * self.command_rate;
-            if (0.0..=1.0).contains(&a) {
-                (a, 1.0)
-            } else {
-                (a.clamp(0.0, 1.0), 0.0)
-            }
-        };
+        let a_end = self.level(h, decay.value);
         let lambda = end_length / self.l0;
         if !(self.stretch_range.0..=self.stretch_range.1).contains(&lambda) {
             return Err(StepError::Discard(
                 self.unsolvable(end_length, "not attempted"),
             ));
         }
-        let (dl, da) = (lambda - self.lambda, a - self.activation_level);
-        let q_guess = Predictor::predict(&self.predict.q, self.q, dl, da, h);
-        let start = FibreHistory {
-            // The CE–SEE solve's starting point (module docs of hill_fibre).
-            lambda_s: Predictor::predict(&self.predict.lambda_s, self.history.lambda_s, dl, da, h)
-                .max(1.0),
-            lambda_m: self.history.lambda_m,
-        };
-        let u = solve_uniaxial(
-            &self.params,
-            lambda,
+        let Stepped {
+            u,
             a,
-            &start,
-            FibreRate::Step { h },
-            q_guess,
-        )
-        .map_err(|e| StepError::Discard(self.unsolvable(end_length, &e.0)))?;
-        u.fibre
-            .history
-            .check_physical(self.params.k, u.lambda_f)
-            .map_err(|e| StepError::Discard(format!("length = {end_length} m: {e}")))?;
-        let (outputs, jacobian) = self.evaluate(&u, a, da_du);
+            da_du,
+            sens,
+            stats,
+        } = self.solve_step(h, lambda, a_end)?;
+        let (outputs, jacobian) = self.evaluate(&u, a, sens, da_du);
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(StepError::Discard(format!(
                 "non-finite output at stretch {lambda}"
@@ -909,7 +1217,7 @@ impl Model for Hill1D {
                  (a step this short cannot be resolved)"
             )));
         }
-        self.commit(&u, a, Some(h), outputs, jacobian);
+        self.commit(&u, a, Some(h), outputs, jacobian, stats);
         self.decay = Some(decay);
         // Input derivatives hold for one step (they describe the input at the
         // communication point they were set at).
@@ -962,7 +1270,8 @@ impl Model for Hill1D {
             // value is recomputed from S on restore.
             .f64s(self.decay.as_ref().map(|d| d.h).as_slice())
             .f64s(&self.outputs)
-            .f64s(&self.jacobian.to_values());
+            .f64s(&self.jacobian.to_values())
+            .f64(self.ce_rate);
     }
 
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
@@ -1026,6 +1335,7 @@ impl Model for Hill1D {
         let jacobian = r.f64s()?;
         m.jacobian = Jacobian::from_values(&jacobian)
             .ok_or_else(|| bad(format!("{} Jacobian values, expected 19", jacobian.len())))?;
+        m.ce_rate = r.f64()?;
         let state = [
             m.command,
             m.command_rate,
@@ -1035,6 +1345,7 @@ impl Model for Hill1D {
             m.history.lambda_m,
             m.lambda,
             m.q,
+            m.ce_rate,
         ];
         if state
             .iter()
@@ -1071,7 +1382,10 @@ Strain energy U = U<sub>I</sub>(&#298;<sub>1</sub>) + U<sub>f</sub>(&lambda;&#77
 <h2>The 1D reduction</h2>
 <p>A prism of rest length L0 and area A0 in homogeneous uniaxial stress: F = diag(&lambda;, &mu;, &mu;) with
 &lambda; = L / L0 and the lateral stretch &mu; solved so that the lateral Cauchy stress is zero (finite D).
-force = &sigma;<sub>11</sub> A0 &mu;&sup2;, stress = force / A0, cauchy_stress = &sigma;<sub>11</sub>.</p>
+force = &sigma;<sub>11</sub> A0 &mu;&sup2;, stress = force / A0, cauchy_stress = &sigma;<sub>11</sub>.
+Each step of the 1D FMU solves this state at its end with the backward-Euler CE&ndash;SEE update, cut into substeps wherever
+its error estimate asks for them (a stiff SEE, fast activation, length jumps), so that the estimated local error of the SEE
+stress stays below 1e-3 &sigma;<sub>0</sub>; with smooth inputs a step is one piece.</p>
 <h2>Co-simulation conventions</h2>
 <ul>
 <li>Inputs set before fmi2DoStep(t, h) hold over the step. The muscle moves from its length to the input length during the

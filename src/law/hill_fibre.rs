@@ -88,6 +88,13 @@ pub struct FibreResponse {
     pub dls_dlambda: f64,
     /// ∂λs/∂a at fixed λ̄f.
     pub dls_dactivation: f64,
+    /// ∂λs/∂λm(t): how the step's SEE stretch moves with the CE stretch of the
+    /// history (the start of the step), at fixed λ̄f and a. Chains the
+    /// derivatives through a sequence of steps (a step cut into substeps).
+    /// 0 for the isometric solve.
+    pub dls_dhistory: f64,
+    /// ∂W/∂λm(t) at fixed λ̄f and a.
+    pub dw_dhistory: f64,
     /// SEE (= CE) nominal stress σ_s.
     pub sigma_see: f64,
     /// PE nominal stress σ_p.
@@ -139,8 +146,9 @@ impl FibreResponse {
 /// Derivatives at the root, from R(λs, λ̄f, a) = 0:
 /// R_λs = σ_s' + σ0 a f_λ f_v' k / h,
 /// R_λf = −σ0 a f_λ' f_v − σ0 a f_λ f_v' (1 + k) / h,  R_a = −σ0 f_λ f_v,
-/// dλs/dλ̄f = −R_λf / R_λs,  dλs/da = −R_a / R_λs,
-/// dW/dλ̄f = σ_s' dλs/dλ̄f + σ_p',  ∂W/∂a = σ_s' dλs/da.
+/// R_λm(t) = σ0 a f_λ f_v' / h,
+/// dλs/dλ̄f = −R_λf / R_λs,  dλs/da = −R_a / R_λs,  dλs/dλm(t) = −R_λm(t) / R_λs,
+/// dW/dλ̄f = σ_s' dλs/dλ̄f + σ_p',  ∂W/∂a = σ_s' dλs/da,  ∂W/∂λm(t) = σ_s' dλs/dλm(t).
 pub fn fibre_response(
     p: &Params,
     lambda_f: f64,
@@ -151,7 +159,7 @@ pub fn fibre_response(
     let (sigma_pe, dsigma_pe) = pe_stress(lambda_f, p.sigma0, p.a_pe);
     let (f_l, df_l) = force_length(lambda_f, p.lambda_opt);
     let drive = p.sigma0 * activation * f_l; // σ0 a f_λ
-    let (sol, lambda_dot_m, dls_df, dls_da) = match rate {
+    let (sol, lambda_dot_m, dls_df, dls_da, dls_dh) = match rate {
         FibreRate::Isometric => {
             // σ_s(λs) = σ0 a f_λ with f_v(0) = 1; dσ_s/dλs = α (σ_s + β) (eq 31).
             let sigma = drive.max(0.0);
@@ -167,15 +175,16 @@ pub fn fibre_response(
                 p.sigma0 * activation * df_l / sol.dsigma,
                 p.sigma0 * f_l / sol.dsigma,
             );
-            (sol, 0.0, dls_df, dls_da)
+            (sol, 0.0, dls_df, dls_da, 0.0)
         }
         FibreRate::Step { h } => {
             let sol = step_solve(p, lambda_f, drive, hist, h);
             let r_ls = sol.dsigma + drive * sol.dfv * p.k / h;
             let r_lf = -p.sigma0 * activation * df_l * sol.fv - drive * sol.dfv * (1.0 + p.k) / h;
             let r_a = -p.sigma0 * f_l * sol.fv;
+            let r_h = drive * sol.dfv / h;
             let rate = (ce_stretch(p.k, lambda_f, sol.lambda_s) - hist.lambda_m) / h;
-            (sol, rate, -r_lf / r_ls, -r_a / r_ls)
+            (sol, rate, -r_lf / r_ls, -r_a / r_ls, -r_h / r_ls)
         }
     };
     FibreResponse {
@@ -184,6 +193,8 @@ pub fn fibre_response(
         dw_dactivation: sol.dsigma * dls_da,
         dls_dlambda: dls_df,
         dls_dactivation: dls_da,
+        dls_dhistory: dls_dh,
+        dw_dhistory: sol.dsigma * dls_dh,
         sigma_see: sol.sigma,
         sigma_pe,
         history: FibreHistory {

@@ -57,6 +57,10 @@ pub struct Uniaxial {
     pub d_dlambda: Sensitivity,
     /// The same with respect to the activation level a at fixed λ.
     pub d_dactivation: Sensitivity,
+    /// The same with respect to the CE stretch λm of the history (the start
+    /// of the step) at fixed λ and a: chains the derivatives of a sequence of
+    /// steps (zero for the isometric solve).
+    pub d_dhistory: Sensitivity,
     /// Newton iterations of the lateral solve (evaluations of the law).
     pub iterations: u32,
     /// Iterations of the CE–SEE solve summed over those evaluations (a
@@ -149,10 +153,11 @@ struct Evaluation {
     g: f64,
     /// dg/dq at fixed λ and a.
     dg_dq: f64,
-    /// ∂T_d/∂q, ∂T_d/∂λ, ∂T_d/∂a.
+    /// ∂T_d/∂q, ∂T_d/∂λ, ∂T_d/∂a, ∂T_d/∂λm(t).
     dtd_dq: f64,
     dtd_dlambda: f64,
     dtd_da: f64,
+    dtd_dhistory: f64,
 }
 
 /// Evaluate the module-level formulas at (λ, q) (module docs).
@@ -190,6 +195,7 @@ fn evaluate(
     );
     let dtd_dlambda = 2.0 * u11 * di1_dl * delta + 2.0 * u1 * ddelta_dl + fibre_term / q;
     let dtd_da = lambda_f * fibre.dw_dactivation;
+    let dtd_dhistory = lambda_f * fibre.dw_dhistory;
     Evaluation {
         lambda_f,
         fibre,
@@ -199,6 +205,7 @@ fn evaluate(
         dtd_dq,
         dtd_dlambda,
         dtd_da,
+        dtd_dhistory,
     }
 }
 
@@ -353,6 +360,7 @@ fn finish(
     // g = p̂(q³) − T_d/3 = 0  ⇒  dq = (∂T_d/3) / g_q along each driver.
     let dq_dl = e.dtd_dlambda / 3.0 / e.dg_dq;
     let dq_da = e.dtd_da / 3.0 / e.dg_dq;
+    let dq_dh = e.dtd_dhistory / 3.0 / e.dg_dq;
     Ok(Uniaxial {
         lambda,
         q,
@@ -362,6 +370,7 @@ fn finish(
         tau11,
         d_dlambda: sensitivity(dq_dl, e.dtd_dlambda, 1.0, 0.0),
         d_dactivation: sensitivity(dq_da, e.dtd_da, 0.0, fibre.dls_dactivation),
+        d_dhistory: sensitivity(dq_dh, e.dtd_dhistory, 0.0, fibre.dls_dhistory),
         fibre,
         iterations,
         ce_iterations,
