@@ -423,3 +423,64 @@ fn passive_elongation_force_scale() {
         "no active stress without activation"
     );
 }
+
+/// An activation jump with a stiff SEE (alpha = 1000) over one 10 ms step:
+/// returns the force and the number of substeps taken.
+fn stiff_jump_step(setup: impl Fn(&mut Hill1D)) -> (f64, u32) {
+    let mut m = Hill1D::new();
+    m.set_real(Var::Param(ParamId::Alpha), 1000.0).unwrap();
+    setup(&mut m);
+    m.initialize().unwrap();
+    m.set_real(Var::Activation, 1.0).unwrap();
+    m.do_step(0.0, 1e-2).unwrap();
+    (out(&m, Output::Force), m.last_step_statistics().substeps)
+}
+
+#[test]
+fn substep_options_switch_and_tighten_the_control() {
+    // Default: the jump is cut into substeps.
+    let (f_default, n_default) = stiff_jump_step(|_| {});
+    assert!(n_default > 1, "{n_default}");
+    // adaptive_substeps = false: the plain scheme, one piece per step.
+    let (f_one, n_one) = stiff_jump_step(|m| {
+        m.set_boolean(Var::AdaptiveSubsteps, false).unwrap();
+    });
+    assert_eq!(n_one, 1);
+    assert_ne!(f_one, f_default);
+    // A tighter tolerance takes more substeps and lands closer to a fine
+    // reference (the same step in 1e-6 tolerance).
+    let (f_tight, n_tight) = stiff_jump_step(|m| {
+        m.set_real(Var::SubstepTolerance, 1e-5).unwrap();
+    });
+    let (f_ref, _) = stiff_jump_step(|m| {
+        m.set_real(Var::SubstepTolerance, 1e-7).unwrap();
+    });
+    assert!(n_tight > n_default, "{n_tight} vs {n_default}");
+    assert!(
+        (f_tight - f_ref).abs() < (f_default - f_ref).abs()
+            && (f_default - f_ref).abs() < (f_one - f_ref).abs(),
+        "one-step {f_one}, default {f_default}, tight {f_tight}, reference {f_ref}"
+    );
+}
+
+#[test]
+fn substep_tolerance_out_of_range_is_rejected_and_round_trips() {
+    let mut m = Hill1D::new();
+    for v in [f64::NAN, 0.0, 1e-10, 1.5, f64::INFINITY] {
+        let e = m.set_real(Var::SubstepTolerance, v).unwrap_err();
+        assert!(
+            e.0.contains("substep_tolerance") && e.0.contains("1e-9"),
+            "{}",
+            e.0
+        );
+    }
+    m.set_real(Var::SubstepTolerance, 1e-4).unwrap();
+    m.set_boolean(Var::AdaptiveSubsteps, false).unwrap();
+    m.initialize().unwrap();
+    let mut bytes = Vec::new();
+    m.serialize(&mut bytes);
+    let back = Hill1D::deserialize(&mut bytes.as_slice()).unwrap();
+    assert_eq!(back, m);
+    assert_eq!(back.get_real(Var::SubstepTolerance), 1e-4);
+    assert!(!back.get_boolean(Var::AdaptiveSubsteps));
+}

@@ -23,9 +23,10 @@
 //! At initialization the muscle is in isometric equilibrium at its initial
 //! length and `initial_activation`.
 
+use super::common::{check_positive, check_range, check_unit_interval, parameter, real, units};
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
-    Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError, Unit,
+    Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
     VarType, Variability,
 };
 use crate::law::activation::{activation_step, Decay};
@@ -52,6 +53,8 @@ pub enum Var {
     Area,
     ActivationDynamics,
     InitialActivation,
+    AdaptiveSubsteps,
+    SubstepTolerance,
     Activation,
     Length,
     Out(Output),
@@ -137,6 +140,12 @@ const IN_LENGTH: usize = 1;
 /// error of the CE–SEE update over one substep, as SEE stress, stays below
 /// `SUBSTEP_RTOL · sigma0` ([`piece_error`]).
 pub const SUBSTEP_RTOL: f64 = 1e-3;
+
+/// The tolerances `substep_tolerance` accepts (a fraction of sigma0).
+pub const SUBSTEP_TOLERANCE_RANGE: Range = Range {
+    min: 1e-9,
+    max: 1.0,
+};
 
 /// Most tries (accepted and rejected substeps) per step before the rest of
 /// the step is taken in one piece.
@@ -260,6 +269,11 @@ pub struct Hill1D {
     area: f64,
     activation_dynamics: bool,
     initial_activation: f64,
+    /// Cut steps into substeps by the error estimate of the CE–SEE update
+    /// (false: one backward-Euler step per communication step).
+    adaptive_substeps: bool,
+    /// Tolerance of that estimate, relative to sigma0.
+    substep_tolerance: f64,
     // Inputs and their derivatives for the next step.
     command: f64,
     /// The length input; `None` until the importer sets it, when the length is
@@ -584,12 +598,13 @@ impl Hill1D {
     /// of the step is taken in one piece (backward Euler is stable for any
     /// length: the result stays bounded, only less accurate). `a_end` is the
     /// level at the end of the step. Changes nothing (the caller commits).
+    #[inline(always)]
     fn solve_step(&self, h: f64, lambda_end: f64, a_end: (f64, f64)) -> Result<Stepped, StepError> {
         // Positions within the step in units of h / 2^FINEST.
         const FINEST: u32 = 40;
         const WHOLE: u64 = 1 << FINEST;
         let p = &self.params;
-        let tol = SUBSTEP_RTOL * p.sigma0;
+        let tol = self.substep_tolerance * p.sigma0;
         let (lambda0, a0) = (self.lambda, self.activation_level);
         let mut stats = StepStatistics::default();
         // The start of the current piece: position in the step, stretch,
@@ -657,7 +672,8 @@ impl Hill1D {
             // faster than that, like a SEE snapping slack, is not resolved by
             // shorter pieces), and so is one that cannot be halved in binary64
             // (a step of a few ulps).
-            let acceptable = err <= tol; // false for NaN
+            // Without substeps every step is one piece.
+            let acceptable = err <= tol || !self.adaptive_substeps; // false for NaN
             if !forced && level < FINEST && hs_j * 0.5 >= f64::MIN_POSITIVE && !acceptable {
                 // Too large (or not finite): the same start, a shorter piece,
                 // at least half as long.
@@ -771,63 +787,6 @@ impl Hill1D {
     }
 }
 
-fn check_positive(name: &str, v: f64) -> Result<(), ModelError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be finite and > 0"
-        )))
-    }
-}
-
-fn check_range(name: &str, v: f64, range: Range) -> Result<(), ModelError> {
-    if range.contains(v) {
-        Ok(())
-    } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be {range}"
-        )))
-    }
-}
-
-fn check_unit_interval(name: &str, v: f64) -> Result<(), ModelError> {
-    if (0.0..=1.0).contains(&v) {
-        Ok(())
-    } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be in [0, 1]"
-        )))
-    }
-}
-
-fn real(unit: &'static str, start: Option<f64>, min: Option<f64>, max: Option<f64>) -> VarType {
-    VarType::Real {
-        unit: Some(unit),
-        start,
-        min,
-        max,
-    }
-}
-
-fn parameter(
-    name: &'static str,
-    description: &'static str,
-    ty: VarType,
-    id: Var,
-) -> ScalarVariable<Var> {
-    ScalarVariable {
-        name,
-        description,
-        causality: Causality::Parameter,
-        variability: Variability::Fixed,
-        initial: None,
-        ty,
-        depends_on: vec![],
-        id,
-    }
-}
-
 impl Model for Hill1D {
     type Var = Var;
 
@@ -837,50 +796,7 @@ impl Model for Hill1D {
             description:
                 "Hill-type hyperelastic skeletal muscle (Lu et al. 2011), 1D uniaxial reduction",
             version: env!("CARGO_PKG_VERSION"),
-            units: vec![
-                Unit {
-                    name: "1",
-                    ..Unit::default()
-                },
-                Unit {
-                    name: "m",
-                    m: 1,
-                    ..Unit::default()
-                },
-                Unit {
-                    name: "m2",
-                    m: 2,
-                    ..Unit::default()
-                },
-                Unit {
-                    name: "s",
-                    s: 1,
-                    ..Unit::default()
-                },
-                Unit {
-                    name: "1/s",
-                    s: -1,
-                    ..Unit::default()
-                },
-                Unit {
-                    name: "N",
-                    kg: 1,
-                    m: 1,
-                    s: -2,
-                },
-                Unit {
-                    name: "Pa",
-                    kg: 1,
-                    m: -1,
-                    s: -2,
-                },
-                Unit {
-                    name: "1/Pa",
-                    kg: -1,
-                    m: 1,
-                    s: 2,
-                },
-            ],
+            units: units(),
             default_experiment: (0.0, 2.5, 1e-3),
             max_input_derivative_order: 1,
             direct_feedthrough: false,
@@ -933,6 +849,23 @@ impl Model for Hill1D {
             "Activation level at the start time",
             real("1", Some(0.0), Some(0.0), Some(1.0)),
             Var::InitialActivation,
+        ));
+        v.push(parameter(
+            "adaptive_substeps",
+            "Cut a step into substeps where the error estimate of the CE-SEE update exceeds substep_tolerance; false: one backward-Euler step per communication step (first order in h)",
+            VarType::Boolean { start: Some(true) },
+            Var::AdaptiveSubsteps,
+        ));
+        v.push(parameter(
+            "substep_tolerance",
+            "Tolerance of the estimated local error of the SEE stress per substep, as a fraction of sigma0",
+            real(
+                "1",
+                Some(SUBSTEP_RTOL),
+                Some(SUBSTEP_TOLERANCE_RANGE.min),
+                Some(SUBSTEP_TOLERANCE_RANGE.max),
+            ),
+            Var::SubstepTolerance,
         ));
         let input = |name, description, ty, id| ScalarVariable {
             name,
@@ -1016,6 +949,8 @@ impl Model for Hill1D {
             area: DEFAULT_AREA,
             activation_dynamics: true,
             initial_activation: 0.0,
+            adaptive_substeps: true,
+            substep_tolerance: SUBSTEP_RTOL,
             command: 0.0,
             length: None,
             command_rate: 0.0,
@@ -1046,7 +981,8 @@ impl Model for Hill1D {
             Var::Activation => self.command,
             Var::Length => self.length(),
             Var::Out(o) => self.outputs[o as usize],
-            Var::ActivationDynamics => f64::NAN,
+            Var::SubstepTolerance => self.substep_tolerance,
+            Var::ActivationDynamics | Var::AdaptiveSubsteps => f64::NAN,
         }
     }
 
@@ -1055,7 +991,11 @@ impl Model for Hill1D {
     }
 
     fn get_boolean(&self, var: Var) -> bool {
-        matches!(var, Var::ActivationDynamics) && self.activation_dynamics
+        match var {
+            Var::ActivationDynamics => self.activation_dynamics,
+            Var::AdaptiveSubsteps => self.adaptive_substeps,
+            _ => false,
+        }
     }
 
     fn set_real(&mut self, var: Var, value: f64) -> Result<SetOutcome, ModelError> {
@@ -1076,6 +1016,10 @@ impl Model for Hill1D {
                 check_unit_interval("initial_activation", value)?;
                 self.initial_activation = value;
             }
+            Var::SubstepTolerance => {
+                check_range("substep_tolerance", value, SUBSTEP_TOLERANCE_RANGE)?;
+                self.substep_tolerance = value;
+            }
             Var::Length => {
                 check_positive("length", value)?;
                 self.length = Some(value);
@@ -1095,7 +1039,7 @@ impl Model for Hill1D {
                     });
                 }
             }
-            Var::ActivationDynamics | Var::Out(_) => {
+            Var::ActivationDynamics | Var::AdaptiveSubsteps | Var::Out(_) => {
                 return Err(ModelError("not a Real input or parameter".into()));
             }
         }
@@ -1110,6 +1054,10 @@ impl Model for Hill1D {
         match var {
             Var::ActivationDynamics => {
                 self.activation_dynamics = value;
+                Ok(SetOutcome::Ok)
+            }
+            Var::AdaptiveSubsteps => {
+                self.adaptive_substeps = value;
                 Ok(SetOutcome::Ok)
             }
             _ => Err(ModelError("not a Boolean parameter".into())),
@@ -1271,7 +1219,9 @@ impl Model for Hill1D {
             .f64s(self.decay.as_ref().map(|d| d.h).as_slice())
             .f64s(&self.outputs)
             .f64s(&self.jacobian.to_values())
-            .f64(self.ce_rate);
+            .f64(self.ce_rate)
+            .bool(self.adaptive_substeps)
+            .f64(self.substep_tolerance);
     }
 
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
@@ -1336,6 +1286,14 @@ impl Model for Hill1D {
         m.jacobian = Jacobian::from_values(&jacobian)
             .ok_or_else(|| bad(format!("{} Jacobian values, expected 19", jacobian.len())))?;
         m.ce_rate = r.f64()?;
+        m.adaptive_substeps = r.bool()?;
+        m.substep_tolerance = r.f64()?;
+        if !SUBSTEP_TOLERANCE_RANGE.contains(m.substep_tolerance) {
+            return Err(bad(format!(
+                "substep_tolerance = {} outside {SUBSTEP_TOLERANCE_RANGE}",
+                m.substep_tolerance
+            )));
+        }
         let state = [
             m.command,
             m.command_rate,
@@ -1385,7 +1343,8 @@ Strain energy U = U<sub>I</sub>(&#298;<sub>1</sub>) + U<sub>f</sub>(&lambda;&#77
 force = &sigma;<sub>11</sub> A0 &mu;&sup2;, stress = force / A0, cauchy_stress = &sigma;<sub>11</sub>.
 Each step of the 1D FMU solves this state at its end with the backward-Euler CE&ndash;SEE update, cut into substeps wherever
 its error estimate asks for them (a stiff SEE, fast activation, length jumps), so that the estimated local error of the SEE
-stress stays below 1e-3 &sigma;<sub>0</sub>; with smooth inputs a step is one piece.</p>
+stress stays below substep_tolerance &middot; &sigma;<sub>0</sub> (default 1e-3); with smooth inputs a step is one piece.
+With adaptive_substeps = false every step is one backward-Euler step (the plain first-order scheme).</p>
 <h2>Co-simulation conventions</h2>
 <ul>
 <li>Inputs set before fmi2DoStep(t, h) hold over the step. The muscle moves from its length to the input length during the
