@@ -141,10 +141,18 @@ def parse_levels(text) -> tuple:
 
 
 def level_label(params) -> str:
-    """``{"n_axial": 12, "n_radial": 2}`` -> ``"12x2"`` ("" when no mesh)."""
+    """``{"n_axial": 12, "n_radial": 2}`` -> ``"12x2"``; ``{"adaptive_substeps":
+    False}`` -> ``"one-step"``; "" otherwise."""
     if "n_axial" in (params or {}):
         return f"{params['n_axial']}x{params['n_radial']}"
+    if (params or {}).get("adaptive_substeps") is False:
+        return ONE_STEP
     return ""
+
+
+ONE_STEP = "one-step"
+"""Label of the 1D muscle with ``adaptive_substeps`` off: one backward-Euler
+CE-SEE update per communication step (the plain first-order scheme)."""
 
 
 # --------------------------------------------------------------------------

@@ -57,11 +57,18 @@ def test_flexes_and_holds_target(flex, scheme):
 
 @pytest.fixture(scope="module")
 def hold_errors(fmu_path):
-    """Max angle error vs the iterated scheme at H = 1 ms, open-loop hold."""
+    """Max angle error vs the iterated scheme at H = 1 ms, open-loop hold,
+    with the muscle's plain one-step CE-SEE update (``adaptive_substeps``
+    off): muscle and coupling error are then both O(H). With the default
+    error-controlled substeps the muscle's own error is held near its
+    tolerance instead, and the total no longer halves with H (measured
+    implicit: 0.022, 0.054, 0.063, 0.093 deg at H = 4..32 ms)."""
+    one_step = {"adaptive_substeps": False}
     ref = am.run("hold", "iterated", 1e-3, t_end=2.0, fmu=fmu_path)
     assert ref.stable and ref.extra["unconverged_steps"] == 0
     steps = (4e-3, 8e-3, 16e-3, 32e-3)
-    errs = {s: np.array([am.error_vs(am.run("hold", s, H, t_end=2.0, fmu=fmu_path), ref) for H in steps])
+    errs = {s: np.array([am.error_vs(am.run("hold", s, H, t_end=2.0, fmu=fmu_path, overrides=one_step), ref)
+                         for H in steps])
             for s in ("explicit", "implicit")}
     return steps, errs
 
@@ -85,16 +92,16 @@ def test_linearly_implicit_more_accurate_than_explicit(hold_errors):
 
 
 def test_explicit_beyond_stable_step_is_flagged(fmu_path):
-    """Stiff variant at H = 96 ms: the explicit scheme diverges (stable up to
-    80 ms); the run is flagged and returns, it does not raise. The linearly
+    """Stiff variant at H = 112 ms: the explicit scheme diverges (stable up
+    to 96 ms); the run is flagged and returns, it does not raise. The linearly
     implicit and the iterated schemes stay stable at that step."""
-    r = am.run("hold_stiff", "explicit", 96e-3, t_end=2.0, fmu=fmu_path)
+    r = am.run("hold_stiff", "explicit", 112e-3, t_end=2.0, fmu=fmu_path)
     assert not r.stable
     assert r.reason
-    ok = am.run("hold_stiff", "explicit", 64e-3, t_end=2.0, fmu=fmu_path)
+    ok = am.run("hold_stiff", "explicit", 96e-3, t_end=2.0, fmu=fmu_path)
     assert ok.stable, ok.reason
     for scheme in ("implicit", "iterated"):
-        r = am.run("hold_stiff", scheme, 96e-3, t_end=2.0, fmu=fmu_path)
+        r = am.run("hold_stiff", scheme, 112e-3, t_end=2.0, fmu=fmu_path)
         assert r.stable, (scheme, r.reason)
         assert np.max(np.abs(r.force)) < 2 * am.F_MAX
 

@@ -4,12 +4,17 @@ the report, failing cases, and the FE code path.
 The orders asserted are those the quick sweep (h = 1e-1 .. 1e-4 s, reference
 h = 1e-5 s with input derivatives, fit over h <= 1e-2 s) measures:
 
-* without input derivatives: first order in every scene (the one-step lag);
-* with input derivatives: the passive ramp is exact at every communication
-  point (to round-off: the step ends exactly at L(t + h) and the passive force
-  is a function of the length); with the contractile element active the
-  backward-Euler CE-SEE update keeps first order, with a smaller error than
-  without derivatives.
+* "1D one-step" (``adaptive_substeps`` off: one backward-Euler CE-SEE update
+  per communication step): without input derivatives first order in every
+  scene (the one-step lag); with input derivatives the passive ramp is exact at
+  every communication point (to round-off: the step ends exactly at L(t + h)
+  and the passive force is a function of the length), and with the
+  contractile element active the backward-Euler CE-SEE update keeps first
+  order, with a smaller error than without derivatives;
+* "1D" (the default, error-controlled substeps): the CE-SEE error is held near
+  the tolerance whatever h is, so with input derivatives the activated scene
+  stays within 1e-3 of the peak force at every h up to 0.1 s, and no error is
+  above the one-step scheme's for h <= 1e-2.
 
 "all points" = the error over each run's own communication points (the
 common grid of the coarsest step has only 6 points in the 0.6 s fast scene).
@@ -41,8 +46,12 @@ def quick(fmu_path, tmp_path_factory):
     return {"dir": out, "result": result, "orders": orders, "elapsed": elapsed}
 
 
-def _rows(quick, scene, derivatives):
-    return sorted((r for r in quick["result"]["rows"] if r["scene"] == scene and r["derivatives"] == derivatives),
+ONE_STEP = "1D one-step"
+
+
+def _rows(quick, scene, derivatives, family="1D"):
+    return sorted((r for r in quick["result"]["rows"]
+                   if r["scene"] == scene and r["derivatives"] == derivatives and r["family"] == family),
                   key=lambda r: -r["h"])
 
 
@@ -55,10 +64,10 @@ def test_quick_mode_runs_under_two_minutes(quick):
 def test_first_order_without_input_derivatives(quick, scene):
     """LS order of the RMS error (all points and common grid) is 1 +- 0.1
     (common grid +- 0.15), and the error falls at every halving of h <= 1e-2."""
-    o = quick["orders"][("1D", scene, False)]
+    o = quick["orders"][(ONE_STEP, scene, False)]
     assert 0.9 < o["rms_all"]["slope"] < 1.1, o
     assert 0.85 < o["rms"]["slope"] < 1.15, o
-    errs = [r["rms_all"] for r in _rows(quick, scene, False) if r["h"] <= 1e-2]
+    errs = [r["rms_all"] for r in _rows(quick, scene, False, ONE_STEP) if r["h"] <= 1e-2]
     assert np.all(np.diff(errs) < 0), errs
 
 
@@ -78,13 +87,38 @@ def test_active_scenes_stay_first_order_with_input_derivatives(quick, scene):
     """With the CE active the order with derivatives is still 1 +- 0.1 (all
     points): the CE-SEE update is backward Euler. The derivatives still lower
     the error at every h <= 1e-2."""
-    o = quick["orders"][("1D", scene, True)]
+    o = quick["orders"][(ONE_STEP, scene, True)]
     assert 0.9 < o["rms_all"]["slope"] < 1.1, o
-    with_d = {r["h"]: r["rms_all"] for r in _rows(quick, scene, True)}
-    without = {r["h"]: r["rms_all"] for r in _rows(quick, scene, False)}
+    with_d = {r["h"]: r["rms_all"] for r in _rows(quick, scene, True, ONE_STEP)}
+    without = {r["h"]: r["rms_all"] for r in _rows(quick, scene, False, ONE_STEP)}
     for h in with_d:
         if h <= 1e-2:
             assert with_d[h] < without[h], (h, with_d[h], without[h])
+
+
+def test_substeps_hold_the_activated_error_at_the_tolerance(quick):
+    """With error-controlled substeps (the default) and input derivatives the
+    activated scene's RMS error stays below 1e-3 of the peak force at every h,
+    also at 0.1 s, where the one-step scheme is 30x above it."""
+    adaptive = _rows(quick, "activated", True)
+    one_step = _rows(quick, "activated", True, ONE_STEP)
+    assert len(adaptive) == len(wp.H_1D["quick"])
+    assert max(r["rms_all"] for r in adaptive) < 1e-3, [r["rms_all"] for r in adaptive]
+    assert one_step[0]["h"] == 0.1 and one_step[0]["rms_all"] > 3e-2
+
+
+@pytest.mark.parametrize("scene", ["activated", "fast"])
+@pytest.mark.parametrize("derivatives", [False, True])
+def test_substeps_never_worse_than_one_step(quick, scene, derivatives):
+    """For h <= 1e-2 the default's error is at most the one-step scheme's
+    (the substeps only ever refine a step), and equal where no step needed a
+    substep (h = 1e-4: same value to 1e-9 relative)."""
+    adaptive = {r["h"]: r["rms_all"] for r in _rows(quick, scene, derivatives)}
+    one_step = {r["h"]: r["rms_all"] for r in _rows(quick, scene, derivatives, ONE_STEP)}
+    for h, e in adaptive.items():
+        if h <= 1e-2:
+            assert e <= one_step[h] * (1 + 1e-9), (h, e, one_step[h])
+    assert adaptive[1e-4] == pytest.approx(one_step[1e-4], rel=1e-9)
 
 
 def test_c_abi_and_fmpy_agree_and_c_abi_is_cheaper(quick):
