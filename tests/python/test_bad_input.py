@@ -4,7 +4,10 @@ A rejected set returns fmi2Error (fmpy raises FMICallException with status 3),
 logs a message naming the variable and its valid range, and leaves the
 instance as it was: its outputs are unchanged and a later legal call behaves
 as if the rejected one never happened (compared with a twin instance that
-never saw the bad call).
+never saw the bad call). Each row of the README's "Bad input" table has a
+test here, run on both FMUs (the FE muscle on a small 4 x 1 mesh: the
+checks are the same code paths as on the default mesh, in a fraction of the
+time).
 """
 
 from __future__ import annotations
@@ -14,10 +17,36 @@ import re
 from ctypes import c_double, c_uint32
 
 import pytest
+from conftest import FMU_PATH, REPO
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import fmi2Discard, fmi2Error, fmi2False, fmi2OK, fmi2Warning
+from fmpy.fmi2 import fmi2Discard, fmi2Error, fmi2False, fmi2LastSuccessfulTime, fmi2OK, fmi2Warning
 
 H = 1e-3
+FE_SMALL = {"n_axial": 4, "n_radial": 1}
+
+
+@pytest.fixture(params=["HillMuscle1D", "HillMuscleFE"])
+def muscle(request):
+    """conftest's factory of initialized muscles, for each FMU in turn."""
+    from elongation import L0, Muscle
+
+    path = FMU_PATH if request.param == "HillMuscle1D" else REPO / "dist" / "HillMuscleFE.fmu"
+    if not path.is_file():
+        pytest.fail(f"{path} not found: build the FMUs with scripts/build_fmus.sh", pytrace=False)
+    extra = FE_SMALL if request.param == "HillMuscleFE" else {}
+    made = []
+
+    def make(params=None, length=L0, activation=0.0, log=None, logging_on=False, initialize=True):
+        m = Muscle(path, {**extra, **(params or {})}, log=log, logging_on=logging_on,
+                   name=f"muscle{len(made)}")
+        made.append(m)
+        if initialize:
+            m.initialize(length=length, activation=activation)
+        return m
+
+    yield make
+    for m in made:
+        m.free()
 
 
 def set_real_status(m, name, value):
@@ -183,6 +212,7 @@ def test_unevaluable_length_in_step_mode_discards_and_state_restores(muscle, bad
         a.slave.doStep(a.time, H, noSetFMUStatePriorToCurrentPoint=fmi2False)
     assert exc.value.status == fmi2Discard
     assert any(names_word(msg, "length") for _, _, msg in a.log[n_log:]), a.log
+    assert a.slave.getRealStatus(fmi2LastSuccessfulTime) == pytest.approx(a.time, abs=1e-12)
     a.slave.setFMUstate(state)
     a.slave.freeFMUstate(state)
     assert a.output_vector() == b.output_vector()
@@ -304,3 +334,111 @@ def test_fixed_parameter_cannot_be_set_after_initialization(muscle):
     assert a.get("sigma0") == b.get("sigma0")
     assert_continues_like_twin(a, b)
 
+
+
+def test_activation_warning_every_time_logged_once(muscle):
+    """An out-of-range activation is a warning at every set, but the log
+    gets one message per instance (a master setting 1.2 at 1 kHz is not
+    flooded)."""
+    a = muscle(log=[])
+    for _ in range(3):
+        assert set_real_status(a, "activation", 1.2) == fmi2Warning
+        a.do_step(H)
+    assert len(messages(a, fmi2Warning)) == 1, a.log
+
+
+def test_contractile_element_of_non_positive_length_discards(muscle):
+    """k = 10: the CE length (1 + k) lambda_f - k lambda_s reaches 0 when the
+    fibre shortens below about k / (1 + k) = 0.91. Shortening the activated
+    muscle to 0.8 L0 in one step is refused with fmi2Discard and a message
+    naming the bound; the instance is as before the step: same outputs as
+    its twin, and (after fmi2SetFMUstate, the way out of FMI's stepFailed
+    state) it continues like the twin."""
+    params = {"k": 10.0}
+    a = muscle(params=params, log=[], activation=1.0)
+    b = muscle(params=params, activation=1.0)
+    for m in (a, b):
+        for _ in range(20):
+            m.step(H, activation=1.0)
+    state = a.slave.getFMUstate()
+    assert set_real_status(a, "length", 0.8 * 0.05) == fmi2OK
+    n_log = len(a.log)
+    with pytest.raises(FMICallException) as exc:
+        a.slave.doStep(a.time, H)
+    assert exc.value.status == fmi2Discard
+    assert any("non-positive length" in msg and "contractile element" in msg
+               for _, _, msg in a.log[n_log:]), a.log
+    assert a.slave.getRealStatus(fmi2LastSuccessfulTime) == pytest.approx(a.time, abs=1e-12)
+    assert a.output_vector() == b.output_vector()
+    a.slave.setFMUstate(state)
+    a.slave.freeFMUstate(state)
+    for m in (a, b):
+        for _ in range(10):
+            m.step(H, length=0.05, activation=1.0)
+    assert a.output_vector() == b.output_vector()
+
+
+def test_call_not_allowed_in_the_current_state(muscle):
+    """doStep and getReal before initialization, exitInitializationMode
+    without enterInitializationMode: fmi2Error with a message naming the
+    function; the instance then initializes and runs like an untouched one."""
+    a = muscle(log=[], initialize=False)
+    with pytest.raises(FMICallException) as exc:
+        a.slave.doStep(0.0, H)
+    assert exc.value.status == fmi2Error
+    with pytest.raises(FMICallException):
+        a.slave.getReal([a.vr["force"]])
+    with pytest.raises(FMICallException):
+        a.slave.exitInitializationMode()
+    for fn in ("fmi2DoStep", "fmi2GetReal", "fmi2ExitInitializationMode"):
+        assert any(fn in msg for msg in messages(a, fmi2Error)), (fn, a.log)
+    a.initialize()
+    b = muscle()
+    drive(a, 20)
+    drive(b, 20)
+    assert a.output_vector() == b.output_vector()
+
+
+def test_unknown_value_reference_is_rejected(muscle):
+    """Set and get of a value reference that does not exist: fmi2Error, the
+    message names the reference; nothing changes."""
+    a, b = twins(muscle)
+    with pytest.raises(FMICallException) as exc:
+        a.slave.setReal([a.vr["length"], 99999], [0.051, 1.0])
+    assert exc.value.status == fmi2Error
+    with pytest.raises(FMICallException):
+        a.slave.getReal([99999])
+    assert any("99999" in msg for msg in messages(a, fmi2Error)), a.log
+    assert a.get("length") == b.get("length")
+    assert_continues_like_twin(a, b)
+
+
+def test_null_pointers_are_rejected(muscle):
+    """NULL value-reference or value arrays (n > 0) and a NULL instance:
+    fmi2Error, no crash, nothing changes."""
+    a, b = twins(muscle)
+    for call in (lambda: a.slave.fmi2SetReal(a.slave.component, None, 1, None),
+                 lambda: a.slave.fmi2GetReal(a.slave.component, None, 1, None),
+                 lambda: a.slave.fmi2GetFMUstate(a.slave.component, None)):
+        with pytest.raises(FMICallException) as exc:
+            call()
+        assert exc.value.status == fmi2Error
+    assert messages(a, fmi2Error), a.log
+    with pytest.raises(FMICallException) as exc:
+        a.slave.fmi2DoStep(None, a.time, H, fmi2False)
+    assert exc.value.status == fmi2Error
+    assert_continues_like_twin(a, b)
+
+
+def test_step_past_the_stop_time_is_rejected(muscle):
+    """With stopTime = 10 ms, the 10 steps up to it succeed and the 11th is
+    an error naming the stop time; the instance keeps its outputs."""
+    a = muscle(log=[], initialize=False)
+    a.initialize(stop_time=10 * H)
+    drive(a, 10)
+    before = a.output_vector()
+    with pytest.raises(FMICallException) as exc:
+        a.slave.doStep(a.time, H)
+    assert exc.value.status == fmi2Error
+    assert any("stop" in msg.lower() for msg in messages(a, fmi2Error)), a.log
+    assert a.output_vector() == before
