@@ -43,7 +43,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 SOURCE = REPO / "tests" / "memory" / "memory_cycles.c"
 FMUS = [REPO / "dist" / "HillMuscle1D.fmu", REPO / "dist" / "HillMuscleFE.fmu"]
-# The FE cycles use a small mesh (2 x 1: 24 tetrahedra): the allocations are
+# The FE cycles use a small mesh (2 x 1: 36 tetrahedra): the allocations are
 # the same kinds as on the default mesh (mesh, patterns, symbolic and numeric
 # factors, element histories), only fewer elements, and 10,000 cycles stay
 # affordable.
@@ -158,7 +158,7 @@ def report(results: list[Result], command: str) -> str:
         "state get/serialize/deserialize/set/free, a second state the importer never frees (`fmi2FreeInstance`",
         "reclaims it, FMI 2.0 §2.1.8), `fmi2Reset`, re-initialization, one step, `fmi2Terminate`,",
         "`fmi2FreeInstance`. Each state cycle: get, size, serialize, deserialize, set, free both, on one running",
-        "instance. The FE cycles use a 2 × 1 mesh (24 tetrahedra; same allocations as the default mesh, fewer",
+        "instance. The FE cycles use a 2 × 1 mesh (36 tetrahedra; same allocations as the default mesh, fewer",
         f"elements). `lsan` = harness built with `-fsanitize=address` (LeakSanitizer at exit); `valgrind` =",
         "`valgrind --leak-check=full` (definitely + indirectly + possibly lost). The FMU binaries are the",
         "release builds in `dist/`.",
