@@ -47,7 +47,9 @@ use nalgebra::{SMatrix, Vector3};
 
 use crate::fe::assembly::{Factor, Pattern};
 use crate::fe::element::{nodal_volumes, IsochoricElement, TetReference};
-use crate::fe::mesh::{revolve_with, FibreLayout, Fusiform, Mesh, Resolution, Section};
+use crate::fe::mesh::{
+    revolve_graded, FibreLayout, Fusiform, Mesh, Resolution, Section, MAX_AXIAL_GRADING,
+};
 use crate::law::volumetric::volumetric_derivatives;
 use crate::law::{FibreHistory, FibreRate, Params};
 
@@ -67,6 +69,19 @@ const MIN_LINE_SEARCH: f64 = 1.0 / 256.0;
 pub enum Ends {
     Clamped,
     Sliding,
+}
+
+/// Where the volumetric penalty U_J = (J − 1)²/D acts ([`crate::fe::element`]
+/// module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Volumetric {
+    /// On nodal volume ratios J_a (average nodal pressure, Bonet & Burton
+    /// 1998): one constraint per node; the FE muscle's formulation.
+    NodalAverage,
+    /// On each element's own J_e: the plain displacement tetrahedron, one
+    /// constraint per element. Locks when nearly incompressible; kept to
+    /// show that (issue 3, verification item 2).
+    Element,
 }
 
 /// Everything fixed once the geometry, mesh and boundary conditions are
@@ -93,12 +108,15 @@ pub struct Discretization {
     pub area: f64,
     /// Fibre layout the mesh was built with.
     pub fibres: FibreLayout,
+    /// The volumetric formulation ([`Volumetric::NodalAverage`] unless
+    /// [`Discretization::with_volumetric`] says otherwise).
+    pub volumetric: Volumetric,
 }
 
 impl Discretization {
     /// The paper's fusiform muscle scaled to rest length `l0` and mean
     /// cross-section `area` (= V0/L0), meshed at `resolution` with
-    /// equal-area cross-sections.
+    /// equal-area cross-sections and uniform slices.
     pub fn fusiform(
         l0: f64,
         area: f64,
@@ -106,6 +124,24 @@ impl Discretization {
         fibres: FibreLayout,
         ends: Ends,
     ) -> Result<Discretization, String> {
+        Self::fusiform_graded(l0, area, resolution, 0.0, fibres, ends)
+    }
+
+    /// [`Discretization::fusiform`] with the slices graded toward the end
+    /// faces ([`crate::fe::mesh::graded_slice`], grading β).
+    pub fn fusiform_graded(
+        l0: f64,
+        area: f64,
+        resolution: Resolution,
+        axial_grading: f64,
+        fibres: FibreLayout,
+        ends: Ends,
+    ) -> Result<Discretization, String> {
+        if !(0.0..=MAX_AXIAL_GRADING).contains(&axial_grading) {
+            return Err(format!(
+                "axial grading {axial_grading} outside [0, {MAX_AXIAL_GRADING}]"
+            ));
+        }
         let radial = (area / crate::specimen::MEAN_AREA).sqrt();
         let profile = Fusiform {
             length: l0,
@@ -113,7 +149,13 @@ impl Discretization {
             r_mid: crate::specimen::MID_RADIUS * radial,
         };
         let mut d = Discretization::new(
-            revolve_with(&profile, resolution, fibres, Section::EqualArea),
+            revolve_graded(
+                &profile,
+                resolution,
+                fibres,
+                Section::EqualArea,
+                axial_grading,
+            ),
             ends,
         )?;
         d.area = area;
@@ -185,8 +227,15 @@ impl Discretization {
             mean_area,
             area: mean_area,
             fibres: FibreLayout::Axial,
+            volumetric: Volumetric::NodalAverage,
             mesh,
         })
+    }
+
+    /// The same discretization with another volumetric formulation.
+    pub fn with_volumetric(mut self, volumetric: Volumetric) -> Discretization {
+        self.volumetric = volumetric;
+        self
     }
 
     pub fn n_nodes(&self) -> usize {
@@ -296,8 +345,15 @@ impl Discretization {
                 &start[e],
                 rate,
             );
-            let p_bar = tet.iter().map(|&a| pressure[a]).sum::<f64>() / 4.0;
             let (g, v) = (&grads[e], volumes[e]);
+            // The pressure the element carries: the mean of its nodal
+            // pressures p̄_e, or (plain tetrahedron) U_J'(J_e) of its own J.
+            let (p_bar, bulk_e) = match self.volumetric {
+                Volumetric::NodalAverage => {
+                    (tet.iter().map(|&a| pressure[a]).sum::<f64>() / 4.0, 0.0)
+                }
+                Volumetric::Element => volumetric_derivatives(v / reference.volume, p.d_comp),
+            };
             let dtau_da = el.point.kirchhoff_activation_derivative();
             for (b, &node) in tet.iter().enumerate() {
                 let f = el.forces[b] + g[b] * (p_bar * v);
@@ -309,10 +365,12 @@ impl Discretization {
             }
             if let Some(values) = values.as_mut() {
                 let mut k: SMatrix<f64, 12, 12> = el.stiffness(reference.volume);
-                // p̄_e v_e (∇N_b ⊗ ∇N_c − ∇N_c ⊗ ∇N_b).
+                // p̄_e v_e (∇N_b ⊗ ∇N_c − ∇N_c ⊗ ∇N_b), and for the plain
+                // tetrahedron (U_J''(J_e)/V_e) (v_e ∇N_b) ⊗ (v_e ∇N_c).
                 for b in 0..4 {
                     for c in 0..4 {
-                        let h = (g[b] * g[c].transpose() - g[c] * g[b].transpose()) * (p_bar * v);
+                        let h = (g[b] * g[c].transpose() - g[c] * g[b].transpose()) * (p_bar * v)
+                            + g[b] * g[c].transpose() * (bulk_e * v * v / reference.volume);
                         for i in 0..3 {
                             for j in 0..3 {
                                 k[(3 * b + i, 3 * c + j)] += h[(i, j)];
@@ -325,16 +383,20 @@ impl Discretization {
             elements.push(ElementState {
                 lambda_f: el.point.lambda_f,
                 j: el.point.j,
-                j_assumed: tet
-                    .iter()
-                    .map(|&a| current_nodal[a] / self.nodal_reference[a])
-                    .sum::<f64>()
-                    / 4.0,
+                j_assumed: match self.volumetric {
+                    Volumetric::NodalAverage => {
+                        tet.iter()
+                            .map(|&a| current_nodal[a] / self.nodal_reference[a])
+                            .sum::<f64>()
+                            / 4.0
+                    }
+                    Volumetric::Element => v / reference.volume,
+                },
                 history: el.point.fibre.history,
                 sigma_see: el.point.fibre.sigma_see,
             });
         }
-        if let Some(values) = values.as_mut() {
+        if let (Some(values), Volumetric::NodalAverage) = (values.as_mut(), self.volumetric) {
             // Σ_a (U_J''(J_a) / V_a) ∂v_a/∂x ⊗ ∂v_a/∂x, ∂v_a/∂x = Σ_{e∋a} (v_e/4) ∇N.
             let mut g = Vec::new();
             for (a, (&ujj, v_ref)) in bulk.iter().zip(&self.nodal_reference).enumerate() {
@@ -916,6 +978,12 @@ mod tests {
     /// differences of its forces, on a perturbed active state (every column).
     #[test]
     fn assembled_tangent_matches_finite_differences_of_the_forces() {
+        for volumetric in [Volumetric::NodalAverage, Volumetric::Element] {
+            check_tangent(volumetric);
+        }
+    }
+
+    fn check_tangent(volumetric: Volumetric) {
         let p = Params {
             d_comp: 1e-6,
             ..Params::default()
@@ -930,7 +998,8 @@ mod tests {
             FibreLayout::Meridian,
             Ends::Clamped,
         )
-        .unwrap();
+        .unwrap()
+        .with_volumetric(volumetric);
         let mut x = d.reference_positions();
         for (i, v) in x.iter_mut().enumerate() {
             *v *= 1.0 + 0.02 * (((i * 7919) % 17) as f64 / 17.0 - 0.5);
@@ -963,7 +1032,7 @@ mod tests {
                 let fd = (fp[i] - fm[i]) / (2.0 * e);
                 assert!(
                     (fd - col[i]).abs() < 1e-6 * scale,
-                    "K[{i},{j}] = {} vs fd {fd} (scale {scale:e})",
+                    "{volumetric:?}: K[{i},{j}] = {} vs fd {fd} (scale {scale:e})",
                     col[i]
                 );
             }
