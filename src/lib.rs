@@ -6,10 +6,15 @@
 //! - [`fmi2`]: a generic FMI 2.0 Co-Simulation layer over a [`fmi2::Model`]
 //!   (knows nothing about muscles).
 //! - [`fmus`]: the FMUs: models with their variable tables.
+//! - `fe` (Cargo feature `fe`, on by default): the 3D finite-element muscle
+//!   behind HillMuscleFE, with the sparse solver faer.
 //!
 //! The cdylib exports the C API of exactly one FMU, chosen by a Cargo feature
-//! (`export-hill1d`, `export-hfe`); `fmu_build` builds it once per FMU.
+//! (`export-hill1d`, `export-hfe`); `fmu_build` builds it once per FMU with
+//! `--no-default-features`, so HillMuscle1D's binary contains no FE code
+//! (`export-hfe` turns `fe` on).
 
+#[cfg(feature = "fe")]
 pub mod fe;
 pub mod fmi2;
 pub mod fmus;

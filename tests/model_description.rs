@@ -4,6 +4,7 @@
 
 use hill_muscle::fmi2::model_description::{guid, model_description, validate_table};
 use hill_muscle::fmus::hill1d::Hill1D;
+#[cfg(feature = "fe")]
 use hill_muscle::fmus::hillfe::HillFE;
 
 fn check_committed(id: &str, generated: &str) {
@@ -93,6 +94,7 @@ fn hill1d_model_structure_has_the_real_dependencies() {
     }
 }
 
+#[cfg(feature = "fe")]
 #[test]
 fn hillfe_model_description_is_committed_and_valid() {
     validate_table::<HillFE>().expect("HillMuscleFE variable table follows FMI 2.0 rules");

@@ -8,8 +8,10 @@
 //!
 //! For each FMU: the model description and documentation are generated from
 //! the model's variable table (the same table the binary dispatches on), the
-//! cdylib is compiled with exactly that FMU's export feature (so it carries no
-//! other model's code), and `dist/<id>.fmu` is zipped with
+//! cdylib is compiled with `--no-default-features` and exactly that FMU's
+//! export feature (so it carries no other model's code: HillMuscle1D is built
+//! without the `fe` feature, hence without `hill_muscle::fe` and faer;
+//! `export-hfe` turns `fe` on), and `dist/<id>.fmu` is zipped with
 //! `modelDescription.xml`, `binaries/<platform>/<id>.<ext>` and
 //! `documentation/index.html`.
 
@@ -24,7 +26,8 @@ use hill_muscle::fmus;
 /// One FMU the project ships.
 struct FmuSpec {
     id: &'static str,
-    /// Cargo feature of the hill-muscle crate that exports this FMU's C API.
+    /// Cargo feature of the hill-muscle crate that exports this FMU's C API;
+    /// the binary is built with only this feature (and what it implies).
     feature: &'static str,
     model_description: fn() -> String,
     documentation: fn() -> String,

@@ -58,6 +58,7 @@ use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::types::*;
 use hill_muscle::fmi2::{Causality, Model, ScalarVariable, VarType};
 use hill_muscle::fmus::hill1d::Hill1D;
+#[cfg(feature = "fe")]
 use hill_muscle::fmus::hillfe::HillFE;
 use hill_muscle::law::{ParamId, Params};
 
@@ -500,6 +501,8 @@ pub fn models() -> Vec<ModelEntry> {
             select: |_| true,
             in_ci_subset: true,
         },
+        // Only with the `fe` feature (on by default).
+        #[cfg(feature = "fe")]
         ModelEntry {
             name: "HillMuscleFE",
             run: |c, w| run_cell::<HillFE>(c, w, &HILLFE_HOOKS),
@@ -530,6 +533,7 @@ pub fn fe_cell(c: &Cell) -> bool {
 /// active-stress bound (its `active_stress` is a volume average of σ_s, so
 /// the bound of every element holds for it), and the reference run at
 /// h / 100 only where it costs at most 20,000 steps (h ≥ 1e-2 s).
+#[cfg(feature = "fe")]
 const HILLFE_HOOKS: Hooks<HillFE> = Hooks {
     stats: None,
     bounds: active_stress_bounds,
