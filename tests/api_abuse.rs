@@ -112,7 +112,9 @@
 //! callbacks); every Real variable × every special value in every state;
 //! every function in every state; 4 × 25,000-step drift runs (two master
 //! clocks alternating); repeated Terminate/Reset from every state;
-//! `fmi2FreeInstance(NULL)` and of a foreign pointer.
+//! `fmi2FreeInstance(NULL)` and of a foreign pointer; a NULL
+//! componentEnvironment with a live logger (passed back unchanged);
+//! `fmi2SetFMUstate(NULL)` from every state.
 //!
 //! # Case counts and modes
 //!
@@ -319,7 +321,12 @@ type FixedLogger = unsafe extern "C" fn(
 );
 
 fn callbacks(book: &LogBook) -> fmi2CallbackFunctions {
-    let fixed: FixedLogger = test_logger;
+    callbacks_with(test_logger, book as *const LogBook as *mut c_void)
+}
+
+/// The callbacks with `fixed` as the logger and `env` as the
+/// componentEnvironment.
+fn callbacks_with(fixed: FixedLogger, env: fmi2ComponentEnvironment) -> fmi2CallbackFunctions {
     fmi2CallbackFunctions {
         // SAFETY: see the module docs.
         logger: Some(unsafe {
@@ -338,7 +345,7 @@ fn callbacks(book: &LogBook) -> fmi2CallbackFunctions {
         allocateMemory: None,
         freeMemory: None,
         stepFinished: None,
-        componentEnvironment: book as *const LogBook as *mut c_void,
+        componentEnvironment: env,
     }
 }
 
@@ -3697,6 +3704,218 @@ fn repeated_terminate_and_reset_and_reset_in_every_state() {
         });
         if let Err(e) = run_sequence(true, &ops) {
             panic!("from {state:?}: {e}");
+        }
+    }
+}
+
+/// What [`null_env_logger`] received, call by call: (componentEnvironment
+/// as an address, instance name, status, category, format, message).
+type NullEnvEntry = (usize, Vec<u8>, fmi2Status, String, String, String);
+
+static NULL_ENV_LOG: Mutex<Vec<NullEnvEntry>> = Mutex::new(Vec::new());
+
+/// Like [`test_logger`], but it records every call whatever the environment
+/// pointer (the book cannot be reached through it: it is NULL). Used only by
+/// [`null_component_environment_is_passed_to_the_logger`].
+unsafe extern "C" fn null_env_logger(
+    env: fmi2ComponentEnvironment,
+    instance_name: fmi2String,
+    status: fmi2Status,
+    category: fmi2String,
+    message: fmi2String,
+    arg: *const c_char,
+) {
+    let e = (
+        env as usize,
+        c_bytes(instance_name),
+        status,
+        c_text(category),
+        c_text(message),
+        c_text(arg),
+    );
+    if let Ok(mut g) = NULL_ENV_LOG.lock() {
+        g.push(e);
+    }
+}
+
+/// FMI 2.0 §2.1.5: componentEnvironment is the importer's pointer, passed back
+/// unchanged as the logger's first argument; NULL is a legal value. With a
+/// live logger and a NULL environment, `fmi2Instantiate` must work, and every
+/// message (the refusal of a wrong GUID, the debug message at creation, the
+/// error of an illegal call, ...) must reach the logger with that NULL
+/// environment and the given instance name, without a crash.
+#[test]
+fn null_component_environment_is_passed_to_the_logger() {
+    type M = Hill1D;
+    let t = table();
+    let take = || std::mem::take(&mut *NULL_ENV_LOG.lock().unwrap());
+    let name = c"null env #2 %s";
+    let check_all = |logs: &[NullEnvEntry]| {
+        assert!(!logs.is_empty(), "the logger was not called");
+        for e in logs {
+            assert_eq!(e.0, 0, "componentEnvironment not passed through: {e:?}");
+            assert_eq!(e.1, name.to_bytes(), "instance name: {e:?}");
+            assert_eq!(e.4, "%s", "format: {e:?}");
+        }
+    };
+    let cb = callbacks_with(null_env_logger, null_mut());
+    assert!(cb.componentEnvironment.is_null() && cb.logger.is_some());
+    take();
+
+    // Refused: the reason still reaches the logger.
+    let c = unsafe {
+        api::instantiate::<M>(
+            name.as_ptr(),
+            fmi2CoSimulation,
+            c"{00000000-0000-0000-0000-000000000000}".as_ptr(),
+            null(),
+            &cb,
+            fmi2False,
+            fmi2True,
+        )
+    };
+    assert!(c.is_null());
+    let logs = take();
+    check_all(&logs);
+    assert!(
+        logs.iter().any(|e| e.2 == fmi2Error
+            && e.3 == "logStatusError"
+            && e.5.starts_with("fmi2Instantiate: ")
+            && e.5.contains("does not match")),
+        "{logs:?}"
+    );
+
+    // Accepted, logging on: a life with one illegal call in it.
+    let c = unsafe {
+        api::instantiate::<M>(
+            name.as_ptr(),
+            fmi2CoSimulation,
+            t.guid.as_ptr(),
+            null(),
+            &cb,
+            fmi2False,
+            fmi2True,
+        )
+    };
+    assert!(!c.is_null(), "{:?}", take());
+    let mut out = vec![f64::NAN; t.outputs.len()];
+    unsafe {
+        assert_eq!(api::do_step::<M>(c, 0.0, 1e-3, fmi2True), fmi2Error);
+        assert_eq!(
+            api::setup_experiment::<M>(c, fmi2False, 0.0, 0.0, fmi2True, 1.0),
+            fmi2OK
+        );
+        assert_eq!(api::enter_initialization_mode::<M>(c), fmi2OK);
+        assert_eq!(api::exit_initialization_mode::<M>(c), fmi2OK);
+        let (vrs, vals) = ([t.activation, t.length], [1.0, 1.05 * DEFAULT_L0]);
+        assert_eq!(
+            api::set_real::<M>(c, vrs.as_ptr(), 2, vals.as_ptr()),
+            fmi2OK
+        );
+        assert_eq!(api::do_step::<M>(c, 0.0, 1e-3, fmi2True), fmi2OK);
+        assert_eq!(
+            api::get_real::<M>(c, t.outputs.as_ptr(), t.outputs.len(), out.as_mut_ptr()),
+            fmi2OK
+        );
+        api::free_instance::<M>(c);
+    }
+    assert!(out.iter().all(|v| v.is_finite()), "{out:?}");
+    let logs = take();
+    check_all(&logs);
+    assert!(
+        logs.iter()
+            .any(|e| e.2 == fmi2OK && e.5.contains("fmi2Instantiate: instance created")),
+        "the debug message at creation: {logs:?}"
+    );
+    assert!(
+        logs.iter().any(|e| e.2 == fmi2Error
+            && e.5.starts_with("fmi2DoStep: ")
+            && e.5.contains("not allowed in state")),
+        "the illegal step's error: {logs:?}"
+    );
+}
+
+/// `fmi2SetFMUstate(c, NULL)`: `fmi2Error` naming the NULL argument, and the
+/// instance is unchanged — its serialized state and outputs are as before,
+/// its FMI state is kept (it steps on), and it continues bit for bit like a
+/// twin that never saw the call. Then the same through the harness from
+/// every FMI state (which checks properties 2, 4 and 5 of the module docs).
+#[test]
+fn set_fmu_state_with_null_pointer_is_an_error_and_changes_nothing() {
+    type M = Hill1D;
+    let t = table();
+    let outputs = |f: &Fmu| {
+        let mut v = vec![f64::NAN; t.outputs.len()];
+        let s =
+            unsafe { api::get_real::<M>(f.c, t.outputs.as_ptr(), t.outputs.len(), v.as_mut_ptr()) };
+        assert_eq!(s, fmi2OK);
+        bits_f64(&v)
+    };
+    let step = |f: &Fmu, i: usize| unsafe {
+        let h = 1e-3;
+        let vrs = [t.activation, t.length];
+        let vals = [1.0, DEFAULT_L0 * (1.0 + 0.01 * i as f64)];
+        assert_eq!(
+            api::set_real::<M>(f.c, vrs.as_ptr(), 2, vals.as_ptr()),
+            fmi2OK
+        );
+        assert_eq!(api::do_step::<M>(f.c, i as f64 * h, h, fmi2True), fmi2OK);
+    };
+    let drive = |bad_call: bool| {
+        let mut f = Fmu::new(true);
+        unsafe {
+            assert_eq!(api::enter_initialization_mode::<M>(f.c), fmi2OK);
+            assert_eq!(api::exit_initialization_mode::<M>(f.c), fmi2OK);
+            // A saved state exists (slot 0): "unchanged" must not mean "restored".
+            assert_eq!(api::get_fmu_state::<M>(f.c, &mut f.slots[0]), fmi2OK);
+        }
+        (0..10).for_each(|i| step(&f, i));
+        if bad_call {
+            let before = f.state_bytes().unwrap();
+            let out_before = outputs(&f);
+            f.book.clear();
+            assert_eq!(
+                unsafe { api::set_fmu_state::<M>(f.c, null_mut()) },
+                fmi2Error
+            );
+            let logs = f.book.take();
+            assert!(
+                logs.iter().any(|e| e.status == fmi2Error
+                    && e.category == "logStatusError"
+                    && e.message.starts_with("fmi2SetFMUstate: FMUstate is NULL")),
+                "{logs:?}"
+            );
+            assert_eq!(f.state_bytes().unwrap(), before, "the instance changed");
+            assert_eq!(outputs(&f), out_before);
+        }
+        (10..20).for_each(|i| step(&f, i));
+        (outputs(&f), f.state_bytes().unwrap())
+    };
+    let (with, without) = (drive(true), drive(false));
+    assert!(with == without, "the instance diverged from its twin");
+
+    for state in ALL_STATES {
+        for logging_on in [false, true] {
+            let mut ops = reach(state);
+            ops.push(Op::Call(Call::GetState {
+                comp: Comp::Valid,
+                out: StateOut::Slot(1),
+            }));
+            ops.push(Op::Call(Call::SetState {
+                comp: Comp::Valid,
+                st: StateIn::Null,
+            }));
+            ops.push(Op::ExpectState(state));
+            ops.push(Op::Run {
+                n: 3,
+                h: 1e-3,
+                tc: Tc::Accumulated,
+                amp: 0.05,
+                act: 1.0,
+            });
+            if let Err(e) = run_sequence(logging_on, &ops) {
+                panic!("from {state:?}, logging {logging_on}: {e}");
+            }
         }
     }
 }
