@@ -4,7 +4,7 @@
 
 /// Activation level after a step of length `h` from level `a0`, for the
 /// command u(τ) = u0 + u_dot τ over the step (exact solution of
-/// da/dt = S (u − a)):
+/// da/dt = S (u − a), paper eq 9–10 as MODEL_NOTES "Activation" states them):
 /// a(h) = u0 + u_dot h − u_dot/S + (a0 − u0 + u_dot/S) e^(−S h).
 /// With `u_dot = 0` this is a(h) = u0 + (a0 − u0) e^(−S h) (MODEL_NOTES).
 /// `decay` is e^(−S h) (see [`Decay`]). Returns the level (clamped to
@@ -38,7 +38,8 @@ pub struct Decay {
 }
 
 impl Decay {
-    /// e^(−S h).
+    /// e^(−S h), the decay of a(t+h) = u + (a(t) − u) e^(−S h) (MODEL_NOTES
+    /// "Activation"; 1 − h_t(t + h, t) of paper eq 10).
     pub fn new(s: f64, h: f64) -> Decay {
         Decay {
             s,
@@ -47,7 +48,8 @@ impl Decay {
         }
     }
 
-    /// `cached` when it is for (S, h), else a new one.
+    /// `cached` when it is for (S, h), else a new one: the same factor
+    /// e^(−S h) as [`Decay::new`] (MODEL_NOTES "Activation"; paper eq 10).
     pub fn for_step(cached: Option<Decay>, s: f64, h: f64) -> Decay {
         match cached {
             Some(d) if d.s == s && d.h == h => d,

@@ -1,6 +1,7 @@
 //! Force-velocity relation f_v (paper eq 12 as restated in MODEL_NOTES "Hill fibre").
 
-/// f_v(λ̇m) and d f_v / d λ̇m, with x = λ̇m / λ̇_m^min (x > 0 when shortening):
+/// f_v(λ̇m) and d f_v / d λ̇m (paper eq 12 as restated in MODEL_NOTES
+/// "Hill fibre"), with x = λ̇m / λ̇_m^min (x > 0 when shortening):
 /// - shortening (λ̇m ≤ 0): f_v = (1 − x) / (1 + k_c x), and 0 for x ≥ 1;
 /// - lengthening (λ̇m > 0): f_v = d − (d − 1)(1 + x) / (1 − k_e k_c x).
 ///
@@ -33,7 +34,8 @@ pub fn force_velocity(
     }
 }
 
-/// d²f_v/dλ̇m² of [`force_velocity`] (for the CE–SEE solve's error estimate):
+/// d²f_v/dλ̇m² of [`force_velocity`] (the second derivative of paper eq 12 in
+/// the form of MODEL_NOTES "Hill fibre"; for the CE–SEE solve's error estimate):
 /// shortening, d²/dx² (1 − x)/(1 + k_c x) = 2 k_c (1 + k_c)/(1 + k_c x)³ (0 for
 /// x ≥ 1); lengthening, −(d − 1) d²/dx² (1 + x)/(1 − K x) = −(d − 1) 2 K (1 + K)/(1 − K x)³
 /// with K = k_e k_c; divided by (λ̇_m^min)².
@@ -60,8 +62,9 @@ pub fn force_velocity_curvature(
     }
 }
 
-/// Which smooth piece of f_v a CE rate lies on: lengthening, shortening
-/// slower than the maximum rate, or faster (f_v = 0). f_v has kinks between them.
+/// Which smooth piece of f_v (paper eq 12, MODEL_NOTES "Hill fibre") a CE rate
+/// lies on: 0 lengthening (λ̇m > 0), 1 shortening slower than the maximum rate
+/// (x < 1), 2 faster (x ≥ 1, f_v = 0). f_v has kinks between them.
 /// (x < 1 ⇔ λ̇m > λ̇_m^min, as λ̇_m^min < 0: compared without a division.)
 pub fn force_velocity_branch(lambda_dot_m: f64, lambda_dot_min: f64) -> u8 {
     if lambda_dot_m > 0.0 {

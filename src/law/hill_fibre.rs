@@ -1,6 +1,6 @@
 //! The Hill fibre: contractile element (CE) in series with the series elastic
 //! element (SEE), in parallel with the parallel element (PE)
-//! (MODEL_NOTES "Hill fibre", paper eq 5–23).
+//! (MODEL_NOTES "Hill fibre"; paper eq 4, 6–23 and 26).
 //!
 //! The fibre's nominal stress is W = ∂U_f/∂λ̄f = σ_s + σ_p. σ_s depends on the
 //! SEE stretch λs, a history variable found by the CE–SEE step solve:
@@ -140,8 +140,10 @@ impl FibreResponse {
     }
 }
 
-/// Fibre nominal stress W(λ̄f) at the end of a step, with the CE–SEE solve and
-/// its consistent derivatives (MODEL_NOTES "Hill fibre").
+/// Fibre nominal stress W(λ̄f) = σ_s + σ_p (paper eq 26, with σ_s of eq 7 and
+/// σ_p of eq 22–23) at the end of a step, with the CE–SEE solve σ_s = σ_c
+/// (eq 8; the residual R of MODEL_NOTES "Hill fibre", which replaces the
+/// paper's eq 13–21) and its consistent derivatives.
 ///
 /// Derivatives at the root, from R(λs, λ̄f, a) = 0:
 /// R_λs = σ_s' + σ0 a f_λ f_v' k / h,
@@ -322,8 +324,10 @@ fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64
 }
 
 /// The solution at `ls` from the evaluation `e` at a nearby point (one
-/// accepted Newton correction away):
-/// σ_s and f_v moved to first order (dλ̇m/dλs = −k/h = −`k_over_h`).
+/// accepted Newton correction away) of the CE–SEE step solve (MODEL_NOTES
+/// "Hill fibre"): σ_s (paper eq 7, slope eq 31) and f_v (eq 12) moved to
+/// first order, with dλ̇m/dλs = −k/h = −`k_over_h` from the series kinematics
+/// (1 + k) λ̄f = λm + k λs.
 fn accept(e: SeeSolution, ls: f64, iterations: u32, k_over_h: f64) -> SeeSolution {
     let delta = ls - e.lambda_s;
     SeeSolution {

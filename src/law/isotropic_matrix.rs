@@ -1,11 +1,13 @@
 //! Isotropic matrix energy U_I(Ī1) (MODEL_NOTES "Energy and stress").
 
-/// U_I = c (exp(b (Ī1 − 3)) − 1).
+/// U_I = c (exp(b (Ī1 − 3)) − 1) (paper eq 3; MODEL_NOTES "Energy and stress").
 pub fn matrix_energy(i1_bar: f64, b: f64, c: f64) -> f64 {
     c * (b * (i1_bar - 3.0)).exp_m1()
 }
 
-/// (U_I', U_I'') = (b c exp(b (Ī1 − 3)), b² c exp(b (Ī1 − 3))).
+/// (U_I', U_I'') = (b c exp(b (Ī1 − 3)), b² c exp(b (Ī1 − 3))): U_I' is paper
+/// eq 25 (MODEL_NOTES "Energy and stress"), U_I'' its derivative in Ī1 (for the
+/// tangent, `super::stress` module docs).
 #[inline]
 pub fn matrix_derivatives(i1_bar: f64, b: f64, c: f64) -> (f64, f64) {
     let e = b * c * (b * (i1_bar - 3.0)).exp();

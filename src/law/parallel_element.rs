@@ -1,6 +1,7 @@
 //! Parallel elastic element (PE), paper eq 22–23 (eq 28 with A = 4).
 
-/// σ_p(λ̄f) = σ0 A (λ̄f − 1)² for λ̄f > 1, else 0, and its derivative.
+/// σ_p(λ̄f) = σ0 A (λ̄f − 1)² for λ̄f > 1, else 0 (paper eq 22–23; MODEL_NOTES
+/// "Energy and stress"), and its derivative dσ_p/dλ̄f = 2 σ0 A (λ̄f − 1).
 #[inline]
 pub fn pe_stress(lambda_f: f64, sigma0: f64, a_pe: f64) -> (f64, f64) {
     if lambda_f > 1.0 {
@@ -11,7 +12,8 @@ pub fn pe_stress(lambda_f: f64, sigma0: f64, a_pe: f64) -> (f64, f64) {
     }
 }
 
-/// Normalised PE force f_PE = σ_p / σ0 = A (λ̄f − 1)² for λ̄f > 1 (paper Fig 3).
+/// Normalised PE force f_PE = σ_p / σ0 = A (λ̄f − 1)² for λ̄f > 1, else 0
+/// (paper eq 23, plotted in Fig 3).
 pub fn pe_force_normalised(lambda_f: f64, a_pe: f64) -> f64 {
     pe_stress(lambda_f, 1.0, a_pe).0
 }

@@ -36,18 +36,21 @@ pub struct Range {
 }
 
 impl Range {
-    /// Whether the value is finite and lies in `[min, max]`.
+    /// Whether the value is finite and lies in `[min, max]`. Implements no
+    /// equation: the range check of a parameter of MODEL_NOTES "Parameters".
     pub fn contains(self, x: f64) -> bool {
         x.is_finite() && x >= self.min && x <= self.max
     }
 }
 
 impl fmt::Display for Range {
+    /// "finite and in [min, max]", for messages (no equation).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "finite and in [{:e}, {:e}]", self.min, self.max)
     }
 }
 
+/// The range `[min, max]` (no equation; the tables' shorthand).
 const fn between(min: f64, max: f64) -> Range {
     Range { min, max }
 }
@@ -197,6 +200,7 @@ pub struct ParamError {
 }
 
 impl fmt::Display for ParamError {
+    /// The message naming the parameter, its value and its range (no equation).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
@@ -268,7 +272,7 @@ impl Default for Params {
 }
 
 impl Params {
-    /// The table row of a parameter.
+    /// The table row of a parameter (MODEL_NOTES "Parameters"; no equation).
     pub fn info(id: ParamId) -> &'static ParamInfo {
         PARAMETERS
             .iter()
@@ -276,7 +280,7 @@ impl Params {
             .expect("every ParamId has a row in PARAMETERS")
     }
 
-    /// Value of one parameter.
+    /// Value of one parameter of MODEL_NOTES "Parameters" (no equation).
     pub fn get(&self, id: ParamId) -> f64 {
         match id {
             ParamId::B => self.b,
@@ -296,6 +300,7 @@ impl Params {
         }
     }
 
+    /// The field of one parameter of MODEL_NOTES "Parameters" (no equation).
     fn get_mut(&mut self, id: ParamId) -> &mut f64 {
         match id {
             ParamId::B => &mut self.b,
@@ -315,15 +320,16 @@ impl Params {
         }
     }
 
-    /// Set one parameter after checking it against its range; on error `self`
-    /// is unchanged.
+    /// Set one parameter of MODEL_NOTES "Parameters" after checking it against
+    /// its range; on error `self` is unchanged (no equation).
     pub fn set(&mut self, id: ParamId, value: f64) -> Result<(), ParamError> {
         Self::check(id, value)?;
         *self.get_mut(id) = value;
         Ok(())
     }
 
-    /// Check one value against the range of parameter `id`.
+    /// Check one value against the range of parameter `id` (MODEL_NOTES
+    /// "Parameters"; no equation).
     pub fn check(id: ParamId, value: f64) -> Result<(), ParamError> {
         let info = Self::info(id);
         if info.range.contains(value) {
@@ -337,21 +343,22 @@ impl Params {
         }
     }
 
-    /// Validate the whole set (every parameter in its range); reports the first
-    /// offender in table order.
+    /// Validate the whole set (every parameter of MODEL_NOTES "Parameters" in
+    /// its range); reports the first offender in table order (no equation).
     pub fn validate(&self) -> Result<(), ParamError> {
         PARAMETERS
             .iter()
             .try_for_each(|info| Self::check(info.id, self.get(info.id)))
     }
 
-    /// Construct from explicit values, validated.
+    /// Construct from explicit values, validated (see [`Params::validate`];
+    /// no equation).
     pub fn new_validated(p: Params) -> Result<Params, ParamError> {
         p.validate()?;
         Ok(p)
     }
 
-    /// Asymptote of the force-velocity curve for fast lengthening,
+    /// Asymptote of the force-velocity curve (paper eq 12) for fast lengthening,
     /// d + (d − 1)/(k_e k_c) (MODEL_NOTES "Hill fibre").
     pub fn fv_max(&self) -> f64 {
         self.d + (self.d - 1.0) / (self.ke * self.kc)

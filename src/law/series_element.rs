@@ -1,7 +1,8 @@
-//! Series elastic element (SEE), paper eq 6 and 31.
+//! Series elastic element (SEE), paper eq 6–7, 29 and 31 (MODEL_NOTES "Hill fibre").
 
-/// σ_s(λs) = β (exp(α (λs − 1)) − 1) and dσ_s/dλs = α β exp(α (λs − 1)) (eq 6;
-/// the exact integral of dσ/dλ = α (σ + β), eq 31).
+/// σ_s(λs) = β (exp(α (λs − 1)) − 1) and dσ_s/dλs = α β exp(α (λs − 1))
+/// (paper eq 7 = eq 29; eq 6 is its recurrence form, the exact integral of
+/// dσ/dλ = α (σ + β), eq 31; MODEL_NOTES "Hill fibre").
 #[inline]
 pub fn see_stress(lambda_s: f64, alpha: f64, beta: f64) -> (f64, f64) {
     let e = (alpha * (lambda_s - 1.0)).exp();
@@ -15,7 +16,7 @@ pub fn see_stiffness(sigma: f64, alpha: f64, beta: f64) -> f64 {
 }
 
 /// Inverse of [`see_stress`]: the SEE stretch carrying nominal stress σ ≥ 0,
-/// λs = 1 + ln(1 + σ/β)/α.
+/// λs = 1 + ln(1 + σ/β)/α (paper eq 7 solved for λs; MODEL_NOTES "Hill fibre").
 #[inline]
 pub fn see_stretch_for_stress(sigma: f64, alpha: f64, beta: f64) -> f64 {
     1.0 + (sigma / beta).ln_1p() / alpha

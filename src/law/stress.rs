@@ -41,7 +41,8 @@ use super::isotropic_matrix::matrix_derivatives;
 use super::params::Params;
 use super::volumetric::volumetric_derivatives;
 
-/// Deviator dev X = X − (tr X / 3) I.
+/// Deviator dev X = X − (tr X / 3) I (as used in eq 30, MODEL_NOTES "Energy
+/// and stress").
 #[inline]
 pub fn dev(x: &Matrix3<f64>) -> Matrix3<f64> {
     x - Matrix3::identity() * (x.trace() / 3.0)
@@ -72,8 +73,9 @@ pub struct LawPoint {
 impl LawPoint {
     /// Evaluate the law at deformation gradient `f` (J > 0), reference unit
     /// fibre direction `fibre_dir`, activation level `activation`, fibre
-    /// history at the start of the step `hist` and the rate mode `rate`
-    /// (MODEL_NOTES "Kinematics").
+    /// history at the start of the step `hist` and the rate mode `rate`:
+    /// the kinematics of MODEL_NOTES "Kinematics", U_I' and U_J' (paper eq 25
+    /// and 27) and the fibre's W (MODEL_NOTES "Hill fibre").
     pub fn new(
         p: &Params,
         f: &Matrix3<f64>,
@@ -102,36 +104,43 @@ impl LawPoint {
         }
     }
 
-    /// a ⊗ a.
+    /// a ⊗ a, with a the unit deformed fibre direction (MODEL_NOTES
+    /// "Kinematics"): the structural tensor of eq 30's fibre term.
     fn a_outer(&self) -> Matrix3<f64> {
         self.a * self.a.transpose()
     }
 
-    /// Isochoric (deviatoric) Kirchhoff stress τ_iso = 2 U_I' dev B̄ + λ̄f W dev(a⊗a).
+    /// Isochoric (deviatoric) Kirchhoff stress τ_iso = 2 U_I' dev B̄ + λ̄f W dev(a⊗a):
+    /// the bracket of eq 30 (MODEL_NOTES "Energy and stress"), i.e. J σ
+    /// without the volumetric term J U_J' I.
     pub fn kirchhoff_isochoric(&self) -> Matrix3<f64> {
         dev(&self.b_bar) * (2.0 * self.du_i.0)
             + dev(&self.a_outer()) * (self.lambda_f * self.fibre.w)
     }
 
-    /// Kirchhoff stress τ = J σ (eq 30 times J).
+    /// Kirchhoff stress τ = J σ (eq 30 times J; MODEL_NOTES "Energy and stress").
     pub fn kirchhoff(&self) -> Matrix3<f64> {
         self.kirchhoff_isochoric() + Matrix3::identity() * (self.j * self.du_j.0)
     }
 
-    /// Cauchy stress σ = (1/J) [2 U_I' dev B̄ + λ̄f W dev(a⊗a)] + U_J' I (eq 30).
+    /// Cauchy stress σ = (1/J) [2 U_I' dev B̄ + λ̄f W dev(a⊗a)] + U_J' I (eq 30,
+    /// MODEL_NOTES "Energy and stress").
     pub fn cauchy(&self) -> Matrix3<f64> {
         self.kirchhoff() / self.j
     }
 
-    /// J c : d for a symmetric `d` (module docs, "Tangent"): the isochoric
-    /// and volumetric parts.
+    /// J c : d for a symmetric `d`: the spatial tangent of the energy of
+    /// paper eq 2 (derived in the module docs, "Tangent", as MODEL_NOTES
+    /// "Energy and stress" asks instead of eq 24), isochoric plus volumetric
+    /// part.
     pub fn tangent_apply(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
         self.tangent_apply_isochoric(d) + self.tangent_apply_volumetric(d)
     }
 
-    /// The isochoric part of J c : d (the U_I and U_f terms of the module
-    /// docs' tangent), for elements whose volumetric response is taken
-    /// elsewhere (e.g. on nodal volumes).
+    /// The isochoric part of J c : d (the U_I and U_f terms, paper eq 3–4, of
+    /// the module docs' tangent; MODEL_NOTES "Energy and stress"), for
+    /// elements whose volumetric response is taken elsewhere (e.g. on nodal
+    /// volumes).
     pub fn tangent_apply_isochoric(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
         let id = Matrix3::identity();
         let tr_d = d.trace();
@@ -153,7 +162,8 @@ impl LawPoint {
             + second(&g4, i4) * (4.0 * psi4)
     }
 
-    /// The volumetric part of J c : d: J² U_J'' tr(d) I + J U_J' (tr(d) I − 2 d).
+    /// The volumetric part of J c : d: J² U_J'' tr(d) I + J U_J' (tr(d) I − 2 d),
+    /// the U_J term (paper eq 5, U_J' eq 27) of the module docs' tangent.
     pub fn tangent_apply_volumetric(&self, d: &Matrix3<f64>) -> Matrix3<f64> {
         let (uj, ujj) = self.du_j;
         let (j, tr_d) = (self.j, d.trace());
@@ -161,28 +171,33 @@ impl LawPoint {
             + (Matrix3::identity() * tr_d - d * 2.0) * (j * uj)
     }
 
-    /// Variation of the Kirchhoff stress for δF = g F:
-    /// δτ = J c : sym(g) + g τ + τ gᵀ (module docs).
+    /// Variation of the Kirchhoff stress τ = J σ (eq 30 times J) for δF = g F:
+    /// δτ = J c : sym(g) + g τ + τ gᵀ (module docs, "Tangent"; MODEL_NOTES
+    /// "Energy and stress").
     pub fn kirchhoff_variation(&self, g: &Matrix3<f64>) -> Matrix3<f64> {
         let tau = self.kirchhoff();
         let d = (g + g.transpose()) * 0.5;
         self.tangent_apply(&d) + g * tau + tau * g.transpose()
     }
 
-    /// Variation of the isochoric Kirchhoff stress for δF = g F:
-    /// δτ_iso = J c_iso : sym(g) + g τ_iso + τ_iso gᵀ.
+    /// Variation of the isochoric Kirchhoff stress (eq 30's bracket, see
+    /// [`LawPoint::kirchhoff_isochoric`]) for δF = g F:
+    /// δτ_iso = J c_iso : sym(g) + g τ_iso + τ_iso gᵀ (module docs, "Tangent").
     pub fn kirchhoff_isochoric_variation(&self, g: &Matrix3<f64>) -> Matrix3<f64> {
         let tau = self.kirchhoff_isochoric();
         let d = (g + g.transpose()) * 0.5;
         self.tangent_apply_isochoric(&d) + g * tau + tau * g.transpose()
     }
 
-    /// ∂τ/∂a at fixed F: λ̄f (∂W/∂a) dev(a⊗a).
+    /// ∂τ/∂a (a the activation level) at fixed F: λ̄f (∂W/∂a) dev(a⊗a), the
+    /// derivative of J × eq 30, where only W depends on the activation (through
+    /// σ_c of eq 8 in the CE–SEE solve, MODEL_NOTES "Hill fibre").
     pub fn kirchhoff_activation_derivative(&self) -> Matrix3<f64> {
         dev(&self.a_outer()) * (self.lambda_f * self.fibre.dw_dactivation)
     }
 
-    /// The spatial tangent J c in Voigt notation, order (11, 22, 33, 12, 23, 13),
+    /// The spatial tangent J c of the energy of paper eq 2 (module docs,
+    /// "Tangent"; MODEL_NOTES "Energy and stress") in Voigt notation, order (11, 22, 33, 12, 23, 13),
     /// acting on strain vectors with engineering shears (2 d_12, 2 d_23, 2 d_13).
     /// Symmetric (the law has an energy at fixed history).
     pub fn spatial_tangent_voigt(&self) -> Matrix6<f64> {

@@ -5,10 +5,21 @@
 //! and by μ on both lateral axes: F = diag(λ, μ, μ), J = λ μ². The lateral
 //! faces are traction-free, σ22 = σ33 = 0, which fixes μ.
 //!
-//! **Derivation from the 3D stress.** Eq 30 (the Kirchhoff form
-//! τ = 2 U_I' dev B̄ + λ̄f W dev(a⊗a) + J U_J' I of [`super::stress`]) at
-//! F = diag(λ, μ, μ) with a = e1 is diagonal. With q = J^(1/3),
-//! λ̄f = λ / q, μ̄² = q / λ, Ī1 = λ̄f² + 2 μ̄² and Δ = λ̄f² − μ̄²:
+//! **Derivation from the 3D stress.** The scalar form is the 3D Cauchy stress
+//! of [`super::stress`] — paper eq 30 as MODEL_NOTES "Energy and stress"
+//! states it, σ = (1/J) [2 U_I' dev B̄ + λ̄f W dev(a⊗a)] + U_J' I
+//! ([`LawPoint::cauchy`]), used here in its Kirchhoff form τ = J σ
+//! ([`LawPoint::kirchhoff`]) — evaluated on F = diag(λ, μ, μ) with the
+//! reference fibre direction A = e1. With q = J^(1/3) (MODEL_NOTES
+//! "Kinematics"):
+//!
+//! - B̄ = J^(−2/3) F Fᵀ = diag(λ̄f², μ̄², μ̄²) with λ̄f = λ / q and
+//!   μ̄² = μ² / q² = q / λ (since μ² = J / λ = q³ / λ);
+//!   Ī1 = tr B̄ = λ̄f² + 2 μ̄²; let Δ = λ̄f² − μ̄²;
+//! - a = J^(−1/3) F A / λ̄f = e1, so dev(a⊗a) = diag(2/3, −1/3, −1/3);
+//! - dev B̄ = diag(λ̄f² − Ī1/3, μ̄² − Ī1/3, μ̄² − Ī1/3) = Δ diag(2/3, −1/3, −1/3).
+//!
+//! So τ is diagonal, with
 //!
 //! τ11 = (2/3) T_d + p̂,  τ22 = τ33 = −(1/3) T_d + p̂,
 //! T_d = 2 U_I'(Ī1) Δ + λ̄f W(λ̄f),  p̂ = J U_J'(J) = 2 J (J − 1) / D,
@@ -22,12 +33,30 @@
 //! the implicit function theorem on g = 0, with the consistent dW/dλ̄f and
 //! ∂W/∂a of the CE–SEE solve.
 //!
-//! The tests evaluate the general 3D [`LawPoint`] at the solved F and check
-//! that it gives the same τ11, τ22 = 0, and — through its consistent spatial
-//! tangent — the same derivatives, so this scalar form cannot drift from the
-//! 3D law.
+//! **Checked against [`LawPoint`].** The tests of this module evaluate the
+//! general 3D law [`LawPoint::new`] at the solved F = diag(λ, μ, μ)
+//! ([`Uniaxial::deformation_gradient`]), so this scalar form cannot drift
+//! from the 3D law:
+//! - `matches_the_closed_form_of_model_notes`: [`LawPoint::cauchy`] gives
+//!   the same σ11, σ22 = σ33 = 0 and σ12 = 0, for D ∈ {1e-9, 1e-6, 1e-4},
+//!   passive and active (and σ11, σ22 also equal MODEL_NOTES' closed form);
+//! - `sensitivities_agree_with_the_3d_tangent`: the total derivatives with
+//!   respect to λ and a agree with the consistent spatial tangent,
+//!   [`LawPoint::kirchhoff_variation`] (plus
+//!   [`LawPoint::kirchhoff_activation_derivative`] for a): δτ11 as computed,
+//!   δτ22 = 0, isometric and rate-dependent fibres;
+//! - `stiff_and_extreme_cases_converge`: [`LawPoint::kirchhoff`] has τ22 = 0
+//!   at the solution over D from 1e-12 to 1e-4, α from 10 to 1000, λ from 0.3
+//!   to 2, passive and active, isometric and h = 1e-6 and 0.1.
 //!
 //! Incompressible limit (D → 0): μ = λ^(−1/2) and P = 2 U_I' (λ − λ⁻²) + W.
+//!
+//! [`LawPoint`]: super::stress::LawPoint
+//! [`LawPoint::new`]: super::stress::LawPoint::new
+//! [`LawPoint::cauchy`]: super::stress::LawPoint::cauchy
+//! [`LawPoint::kirchhoff`]: super::stress::LawPoint::kirchhoff
+//! [`LawPoint::kirchhoff_variation`]: super::stress::LawPoint::kirchhoff_variation
+//! [`LawPoint::kirchhoff_activation_derivative`]: super::stress::LawPoint::kirchhoff_activation_derivative
 
 use super::hill_fibre::{fibre_response, FibreHistory, FibreRate, FibreResponse};
 use super::isotropic_matrix::matrix_derivatives;
@@ -84,39 +113,47 @@ pub struct Sensitivity {
 pub struct UniaxialError(pub String);
 
 impl Uniaxial {
-    /// Nominal (engineering) stress P = F / A0 = τ11 / λ.
+    /// Nominal (engineering) stress P = F / A0 = τ11 / λ (MODEL_NOTES "The 1D
+    /// Hill reduction": F = σ11 A0 μ² with σ11 = τ11 / J, J = λ μ²).
     pub fn nominal_stress(&self) -> f64 {
         self.tau11 / self.lambda
     }
 
-    /// Axial Cauchy stress σ11 = τ11 / J.
+    /// Axial Cauchy stress σ11 = τ11 / J: eq 30's (1, 1) component at
+    /// F = diag(λ, μ, μ) (MODEL_NOTES "The 1D Hill reduction").
     pub fn cauchy_stress(&self) -> f64 {
         self.tau11 / self.j
     }
 
-    /// dP/dλ (total): (dτ11/dλ) / λ − τ11 / λ².
+    /// dP/dλ (total) of P = τ11 / λ (MODEL_NOTES "The 1D Hill reduction"):
+    /// (dτ11/dλ) / λ − τ11 / λ², dτ11/dλ from the implicit function theorem on
+    /// σ22 = 0 (module docs).
     pub fn dnominal_dlambda(&self) -> f64 {
         self.d_dlambda.tau11 / self.lambda - self.tau11 / (self.lambda * self.lambda)
     }
 
-    /// dP/da (total) at fixed λ.
+    /// dP/da (total) at fixed λ of P = τ11 / λ (MODEL_NOTES "The 1D Hill
+    /// reduction"): (dτ11/da) / λ, with σ22 = 0 kept (module docs).
     pub fn dnominal_dactivation(&self) -> f64 {
         self.d_dactivation.tau11 / self.lambda
     }
 
-    /// Total derivative of σ11 = τ11 / J along `s`.
+    /// Total derivative of σ11 = τ11 / J (eq 30's axial component, MODEL_NOTES
+    /// "The 1D Hill reduction") along `s`; see [`cauchy_sensitivity`].
     pub fn dcauchy(&self, s: &Sensitivity) -> f64 {
         cauchy_sensitivity(self.tau11, self.j, s)
     }
 
-    /// The deformation gradient F = diag(λ, μ, μ).
+    /// The deformation gradient F = diag(λ, μ, μ) of MODEL_NOTES "The 1D Hill
+    /// reduction", at which eq 30 is evaluated (module docs).
     pub fn deformation_gradient(&self) -> nalgebra::Matrix3<f64> {
         nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(self.lambda, self.mu, self.mu))
     }
 }
 
 /// The axial stretches at which the law can be evaluated in uniaxial stress:
-/// where the matrix term c exp(b (Ī1 − 3)) stays below c e^700 (finite in
+/// where the matrix term c exp(b (Ī1 − 3)) of U_I and U_I' (paper eq 3, 25)
+/// stays below c e^700 (finite in
 /// binary64 with margin). With Ī1 = λ² + 2/λ (the incompressible value) the
 /// bounds solve b (λ² + 2/λ − 3) = 700 below and above λ = 1 (bisection).
 /// For b = 23.46: about [0.0613, 5.69]. A guide for messages: beyond it the
@@ -137,8 +174,8 @@ pub fn evaluable_stretch_range(p: &Params) -> (f64, f64) {
     (bisect(1.0, 1e-6), bisect(1.0, 1e3))
 }
 
-/// dσ11 along a sensitivity `s`, for σ11 = τ11 / J:
-/// dσ11 = dτ11 / J − τ11 dJ / J².
+/// dσ11 along a sensitivity `s`, for σ11 = τ11 / J (eq 30's axial component,
+/// MODEL_NOTES "The 1D Hill reduction"): dσ11 = dτ11 / J − τ11 dJ / J².
 pub fn cauchy_sensitivity(tau11: f64, j: f64, s: &Sensitivity) -> f64 {
     s.tau11 / j - tau11 * s.j / (j * j)
 }
@@ -160,7 +197,10 @@ struct Evaluation {
     dtd_dhistory: f64,
 }
 
-/// Evaluate the module-level formulas at (λ, q) (module docs).
+/// Evaluate at (λ, q) the scalar form of eq 30 at F = diag(λ, μ, μ) (module
+/// docs; MODEL_NOTES "The 1D Hill reduction" times J): T_d, the lateral
+/// residual g = τ22 and their partial derivatives, with U_I' (eq 25), U_J'
+/// (eq 27) and the fibre's W (MODEL_NOTES "Hill fibre").
 fn evaluate(
     p: &Params,
     lambda: f64,
@@ -258,8 +298,10 @@ pub fn solve_uniaxial(
     })
 }
 
-/// Fallback: bracket the root of g(q) (increasing in q near J = 1) and solve
-/// it with the safeguarded Newton iteration.
+/// Fallback: bracket the root of g(q) = τ22 (the traction-free condition
+/// σ22 = 0 of MODEL_NOTES "The 1D Hill reduction", eq 30 at
+/// F = diag(λ, μ, μ) times J; increasing in q near J = 1) and solve it with
+/// the safeguarded Newton iteration.
 fn bracketed(
     p: &Params,
     lambda: f64,
@@ -321,8 +363,10 @@ fn bracketed(
 }
 
 /// The state at q + dq from the evaluation `e` at q (dq is Newton's last
-/// correction, ≤ 1e-9, applied to first order), with total derivatives by the
-/// implicit function theorem on g(λ, q, a) = 0 (module docs).
+/// correction, ≤ 1e-9, applied to first order): τ11 = T_d where σ22 = 0
+/// (eq 30 at F = diag(λ, μ, μ), MODEL_NOTES "The 1D Hill reduction"), with
+/// total derivatives by the implicit function theorem on g(λ, q, a) = 0
+/// (module docs).
 #[inline]
 fn finish(
     p: &Params,

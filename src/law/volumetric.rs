@@ -1,11 +1,13 @@
 //! Volumetric penalty U_J(J) (MODEL_NOTES "Energy and stress").
 
-/// U_J = (J − 1)² / D.
+/// U_J = (J − 1)² / D (paper eq 5; MODEL_NOTES "Energy and stress").
 pub fn volumetric_energy(j: f64, d_comp: f64) -> f64 {
     (j - 1.0) * (j - 1.0) / d_comp
 }
 
-/// (U_J', U_J'') = (2 (J − 1) / D, 2 / D); U_J' is the hydrostatic pressure p.
+/// (U_J', U_J'') = (2 (J − 1) / D, 2 / D): U_J' is paper eq 27 (MODEL_NOTES
+/// "Energy and stress"), the hydrostatic pressure p of eq 30's U_J' I term;
+/// U_J'' is its derivative in J (for the tangent).
 #[inline]
 pub fn volumetric_derivatives(j: f64, d_comp: f64) -> (f64, f64) {
     (2.0 * (j - 1.0) / d_comp, 2.0 / d_comp)
