@@ -106,6 +106,19 @@ impl IsochoricElement {
         }
     }
 
+    /// From the law already evaluated at the element's F, with the spatial
+    /// gradients ∇N_a = F⁻ᵀ ∇₀N_a (e.g. [`shape_gradients`] of the current
+    /// nodes) and the reference volume V_e: f_a = V_e τ_iso ∇N_a.
+    pub fn from_point(point: LawPoint, grad: [Vector3<f64>; 4], reference_volume: f64) -> Self {
+        let tau = point.kirchhoff_isochoric();
+        let forces = grad.map(|g| tau * g * reference_volume);
+        IsochoricElement {
+            point,
+            forces,
+            grad,
+        }
+    }
+
     /// The 12 × 12 isochoric stiffness ∂f_a/∂x_b (module docs), rows and
     /// columns ordered (node, component).
     pub fn stiffness(&self, reference_volume: f64) -> nalgebra::SMatrix<f64, 12, 12> {

@@ -6,3 +6,4 @@ pub mod assembly;
 pub mod element;
 pub mod mesh;
 pub mod muscle;
+pub mod newton;

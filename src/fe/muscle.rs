@@ -43,26 +43,23 @@
 
 use std::sync::Arc;
 
-use nalgebra::{SMatrix, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use crate::fe::assembly::{Factor, Pattern};
 use crate::fe::element::{nodal_volumes, IsochoricElement, TetReference};
 use crate::fe::mesh::{
     revolve_graded, FibreLayout, Fusiform, Mesh, Resolution, Section, MAX_AXIAL_GRADING,
 };
+pub use crate::fe::newton::{
+    Increment, Solution, Solved, StepInput, TangentCache, Trend, RESIDUAL_TOLERANCE,
+};
+use crate::law::hill_fibre::FibreStress;
+use crate::law::stress::IsochoricStress;
 use crate::law::volumetric::volumetric_derivatives;
-use crate::law::{FibreHistory, FibreRate, Params};
+use crate::law::{FibreHistory, FibreRate, LawPoint, Params};
 
-/// Newton iterations per (sub)step before it counts as not converged.
-pub const MAX_NEWTON_ITERATIONS: usize = 25;
 /// Largest number of substeps a step is split into before it is refused.
 pub const MAX_SUBSTEPS: usize = 64;
-/// Converged when max |R_free| ≤ this × the force scale (module docs).
-pub const RESIDUAL_TOLERANCE: f64 = 1e-10;
-/// … or when the Newton correction is below this × L0 (round-off level).
-pub const INCREMENT_TOLERANCE: f64 = 1e-13;
-/// Smallest line-search step before a Newton iteration counts as failed.
-const MIN_LINE_SEARCH: f64 = 1.0 / 256.0;
 
 /// How the end faces are held (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -93,6 +90,9 @@ pub struct Discretization {
     pub l0: f64,
     pub ends: Ends,
     references: Vec<TetReference>,
+    /// Per element, the inverse of its reference edge matrix
+    /// D_m = [X1 − X0, X2 − X0, X3 − X0] (F = D_s D_m⁻¹).
+    dm_inv: Vec<Matrix3<f64>>,
     /// Reference nodal volumes V_a.
     nodal_reference: Vec<f64>,
     /// Per node a: the elements around it and, per element node, its index
@@ -176,6 +176,14 @@ impl Discretization {
             return Err("the mesh has an element of non-positive volume".into());
         }
         let element_volumes: Vec<f64> = references.iter().map(|r| r.volume).collect();
+        let dm_inv = (0..mesh.tets.len())
+            .map(|e| {
+                let x = mesh.tet_points(e);
+                Matrix3::from_columns(&[x[1] - x[0], x[2] - x[0], x[3] - x[0]])
+                    .try_inverse()
+                    .expect("an element of positive volume")
+            })
+            .collect();
         let nodal_reference = nodal_volumes(n, &mesh.tets, &element_volumes);
         let mut prescribed = vec![false; 3 * n];
         let mut moved_axial = Vec::new();
@@ -220,6 +228,7 @@ impl Discretization {
             l0,
             ends,
             references,
+            dm_inv,
             nodal_reference,
             node_elements,
             pattern,
@@ -266,7 +275,7 @@ impl Discretization {
     }
 
     /// Set the prescribed dofs for the muscle length `length`.
-    fn apply_prescribed(&self, x: &mut [f64], length: f64) {
+    pub(crate) fn apply_prescribed(&self, x: &mut [f64], length: f64) {
         let p = &self.pattern.prescribed;
         for a in 0..self.n_nodes() {
             let x0 = self.mesh.nodes[a];
@@ -297,6 +306,9 @@ impl Discretization {
         rate: FibreRate,
         tangent: bool,
     ) -> Result<Evaluation, String> {
+        if !tangent {
+            return self.residual(p, x, activation, start, rate);
+        }
         let ne = self.n_elements();
         let nn = self.n_nodes();
         // Pass 1: element volumes, nodal volume ratios and pressures.
@@ -313,19 +325,27 @@ impl Discretization {
             volumes.push(v);
         }
         let current_nodal = nodal_volumes(nn, &self.mesh.tets, &volumes);
+        let mut j_nodal = vec![0.0; nn];
         let mut pressure = vec![0.0; nn];
         let mut bulk = vec![0.0; nn];
         let mut j_nodal_range = (f64::INFINITY, f64::NEG_INFINITY);
         for a in 0..nn {
             let j = current_nodal[a] / self.nodal_reference[a];
             let (uj, ujj) = volumetric_derivatives(j, p.d_comp);
+            j_nodal[a] = j;
             pressure[a] = uj;
             bulk[a] = ujj;
             j_nodal_range = (j_nodal_range.0.min(j), j_nodal_range.1.max(j));
         }
-        // Pass 2: element forces and stiffness.
+        // Pass 2: element forces (and stiffness). The forces of element e on
+        // its nodes are (V_e τ_iso + p̄_e v_e I) ∇N_b (module docs of
+        // [`crate::fe::element`]), with the spatial gradients ∇N_b of pass 1.
         let mut forces = vec![0.0; 3 * nn];
-        let mut d_activation = vec![0.0; 3 * nn];
+        let mut d_activation = if tangent {
+            vec![0.0; 3 * nn]
+        } else {
+            Vec::new()
+        };
         let mut values = if tangent {
             Some(self.pattern.zeros())
         } else {
@@ -336,34 +356,72 @@ impl Discretization {
             let tet = &self.mesh.tets[e];
             let pts = self.element_points(x, e);
             let reference = &self.references[e];
-            let el = IsochoricElement::new(
-                p,
-                reference,
-                &pts,
-                &self.mesh.fibre[e],
-                activation,
-                &start[e],
-                rate,
-            );
             let (g, v) = (&grads[e], volumes[e]);
+            let f = reference.deformation_gradient(&pts);
+            let j = f.determinant();
+            let dir = &self.mesh.fibre[e];
+            // The law: stress only for a residual, with its tangent pieces
+            // for a tangent (the same arithmetic, so the same stress).
+            let (stress, point) = if tangent {
+                let point = LawPoint::new(p, &f, dir, activation, &start[e], rate);
+                let stress = IsochoricStress {
+                    tau: point.kirchhoff_isochoric(),
+                    j: point.j,
+                    lambda_f: point.lambda_f,
+                    fibre: FibreStress {
+                        w: point.fibre.w,
+                        sigma_see: point.fibre.sigma_see,
+                        history: point.fibre.history,
+                    },
+                };
+                (stress, Some(point))
+            } else {
+                let stress = IsochoricStress::new(p, &f, j, dir, activation, &start[e], rate);
+                (stress, None)
+            };
             // The pressure the element carries: the mean of its nodal
             // pressures p̄_e, or (plain tetrahedron) U_J'(J_e) of its own J.
             let (p_bar, bulk_e) = match self.volumetric {
-                Volumetric::NodalAverage => {
-                    (tet.iter().map(|&a| pressure[a]).sum::<f64>() / 4.0, 0.0)
-                }
+                Volumetric::NodalAverage => (
+                    0.25 * (pressure[tet[0]]
+                        + pressure[tet[1]]
+                        + pressure[tet[2]]
+                        + pressure[tet[3]]),
+                    0.0,
+                ),
                 Volumetric::Element => volumetric_derivatives(v / reference.volume, p.d_comp),
             };
-            let dtau_da = el.point.kirchhoff_activation_derivative();
+            let s = stress.tau * reference.volume + Matrix3::identity() * (p_bar * v);
             for (b, &node) in tet.iter().enumerate() {
-                let f = el.forces[b] + g[b] * (p_bar * v);
-                let fa = dtau_da * el.grad[b] * reference.volume;
-                for i in 0..3 {
-                    forces[3 * node + i] += f[i];
-                    d_activation[3 * node + i] += fa[i];
-                }
+                let fb = s * g[b];
+                forces[3 * node] += fb[0];
+                forces[3 * node + 1] += fb[1];
+                forces[3 * node + 2] += fb[2];
             }
-            if let Some(values) = values.as_mut() {
+            elements.push(ElementState {
+                lambda_f: stress.lambda_f,
+                j: stress.j,
+                j_assumed: match self.volumetric {
+                    Volumetric::NodalAverage => {
+                        0.25 * (j_nodal[tet[0]]
+                            + j_nodal[tet[1]]
+                            + j_nodal[tet[2]]
+                            + j_nodal[tet[3]])
+                    }
+                    Volumetric::Element => v / reference.volume,
+                },
+                history: stress.fibre.history,
+                sigma_see: stress.fibre.sigma_see,
+            });
+            if let (Some(values), Some(point)) = (values.as_mut(), point) {
+                let dtau_da = point.kirchhoff_activation_derivative();
+                for (b, &node) in tet.iter().enumerate() {
+                    let fa = dtau_da * g[b] * reference.volume;
+                    for i in 0..3 {
+                        d_activation[3 * node + i] += fa[i];
+                    }
+                }
+                let el = IsochoricElement::from_point(point, *g, reference.volume);
                 let mut k: SMatrix<f64, 12, 12> = el.stiffness(reference.volume);
                 // p̄_e v_e (∇N_b ⊗ ∇N_c − ∇N_c ⊗ ∇N_b), and for the plain
                 // tetrahedron (U_J''(J_e)/V_e) (v_e ∇N_b) ⊗ (v_e ∇N_c).
@@ -380,21 +438,6 @@ impl Discretization {
                 }
                 self.pattern.add_element(values, e, tet, &k);
             }
-            elements.push(ElementState {
-                lambda_f: el.point.lambda_f,
-                j: el.point.j,
-                j_assumed: match self.volumetric {
-                    Volumetric::NodalAverage => {
-                        tet.iter()
-                            .map(|&a| current_nodal[a] / self.nodal_reference[a])
-                            .sum::<f64>()
-                            / 4.0
-                    }
-                    Volumetric::Element => v / reference.volume,
-                },
-                history: el.point.fibre.history,
-                sigma_see: el.point.fibre.sigma_see,
-            });
         }
         if let (Some(values), Volumetric::NodalAverage) = (values.as_mut(), self.volumetric) {
             // Σ_a (U_J''(J_a) / V_a) ∂v_a/∂x ⊗ ∂v_a/∂x, ∂v_a/∂x = Σ_{e∋a} (v_e/4) ∇N.
@@ -424,109 +467,9 @@ impl Discretization {
         })
     }
 
-    /// Euclidean norm of the residual over the free dofs.
-    fn residual_norm2(&self, forces: &[f64]) -> f64 {
-        forces
-            .iter()
-            .zip(&self.pattern.prescribed)
-            .filter(|(_, &p)| !p)
-            .map(|(f, _)| f * f)
-            .sum::<f64>()
-            .sqrt()
-    }
-
-    /// Largest residual over the free dofs.
-    fn residual_norm(&self, forces: &[f64]) -> f64 {
-        forces
-            .iter()
-            .zip(&self.pattern.prescribed)
-            .filter(|(_, &p)| !p)
-            .fold(0.0, |m, (f, _)| m.max(f.abs()))
-    }
-
-    /// Force scale of the convergence test: the largest prescribed-dof force,
-    /// at least 1e-6 c · A (the matrix stiffness c on the mean section: a
-    /// force far below any the law produces at a measurable strain).
-    fn force_scale(&self, p: &Params, forces: &[f64]) -> f64 {
-        forces
-            .iter()
-            .zip(&self.pattern.prescribed)
-            .filter(|(_, &pr)| pr)
-            .fold(1e-6 * p.c * self.mean_area, |m, (f, _)| m.max(f.abs()))
-    }
-
     /// The axial reaction on the moved face.
     pub fn reaction(&self, forces: &[f64]) -> f64 {
         self.moved_axial.iter().map(|&d| forces[d]).sum()
-    }
-
-    /// Newton's method from `x` (prescribed dofs already at their values).
-    pub fn solve(
-        &self,
-        p: &Params,
-        mut x: Vec<f64>,
-        activation: f64,
-        start: &[FibreHistory],
-        rate: FibreRate,
-    ) -> Result<Solution, String> {
-        let mut ev = self.evaluate(p, &x, activation, start, rate, true)?;
-        let mut r2 = self.residual_norm2(&ev.forces);
-        for iteration in 0..=MAX_NEWTON_ITERATIONS {
-            let tol = RESIDUAL_TOLERANCE * self.force_scale(p, &ev.forces);
-            let r = self.residual_norm(&ev.forces);
-            if r <= tol {
-                return Ok(Solution {
-                    x,
-                    evaluation: ev,
-                    iterations: iteration,
-                });
-            }
-            if iteration == MAX_NEWTON_ITERATIONS {
-                break;
-            }
-            let factor = self
-                .pattern
-                .factorize(ev.tangent.as_ref().expect("tangent"))?;
-            let mut dx: Vec<f64> = ev
-                .forces
-                .iter()
-                .zip(&self.pattern.prescribed)
-                .map(|(f, &pr)| if pr { 0.0 } else { -f })
-                .collect();
-            factor.solve_in_place(&mut dx);
-            let step = dx.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-            let mut alpha = 1.0;
-            loop {
-                let trial: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
-                if let Ok(t) = self.evaluate(p, &trial, activation, start, rate, true) {
-                    let rt = self.residual_norm2(&t.forces);
-                    if rt <= (1.0 - 1e-4 * alpha) * r2
-                        || alpha * step <= INCREMENT_TOLERANCE * self.l0
-                    {
-                        x = trial;
-                        ev = t;
-                        r2 = rt;
-                        break;
-                    }
-                }
-                alpha *= 0.5;
-                if alpha < MIN_LINE_SEARCH {
-                    return Err(format!(
-                        "Newton iteration {iteration}: no decrease of the residual {r2:e} N along the Newton direction"
-                    ));
-                }
-            }
-            if alpha * step <= INCREMENT_TOLERANCE * self.l0 {
-                return Ok(Solution {
-                    x,
-                    evaluation: ev,
-                    iterations: iteration + 1,
-                });
-            }
-        }
-        Err(format!(
-            "no convergence in {MAX_NEWTON_ITERATIONS} Newton iterations (residual {r2:e} N)"
-        ))
     }
 
     /// Derivatives of the reaction force at a converged solution: with
@@ -539,6 +482,138 @@ impl Discretization {
     pub fn force_derivatives(&self, ev: &Evaluation) -> Result<(f64, f64), String> {
         let values = ev.tangent.as_ref().ok_or("no tangent")?;
         let factor: Factor = self.pattern.factorize(values)?;
+        let (v, w, _) = self.sensitivities(ev, &factor);
+        let mut kx = vec![0.0; 3 * self.n_nodes()];
+        self.pattern.multiply(values, &v, &mut kx);
+        let df_dl = self.reaction(&kx);
+        self.pattern.multiply(values, &w, &mut kx);
+        let df_da = self.reaction(&ev.d_activation) + self.reaction(&kx);
+        Ok((df_dl, df_da))
+    }
+
+    /// The forces alone ([`Self::evaluate`] without the tangent), in the
+    /// first Piola form: with F = D_s D_m⁻¹ (current and reference edge
+    /// matrices), cof F = J F⁻ᵀ, the forces of element e on its nodes b = 1, 2,
+    /// 3 are V_e (τ_iso/J + p̄_e I) cof F ∇₀N_b (= (V_e τ_iso + p̄_e v_e I) ∇N_b
+    /// of [`crate::fe::element`], as ∇N_b = F⁻ᵀ ∇₀N_b and v_e = J V_e), and
+    /// node 0 takes minus their sum (Σ_b ∇₀N_b = 0).
+    fn residual(
+        &self,
+        p: &Params,
+        x: &[f64],
+        activation: f64,
+        start: &[FibreHistory],
+        rate: FibreRate,
+    ) -> Result<Evaluation, String> {
+        let ne = self.n_elements();
+        let nn = self.n_nodes();
+        let node = |a: usize| Vector3::new(x[3 * a], x[3 * a + 1], x[3 * a + 2]);
+        // Pass 1: F and J per element, the nodal volume ratios and pressures.
+        let mut deformation = Vec::with_capacity(ne);
+        let mut current_nodal = vec![0.0; nn];
+        for (e, tet) in self.mesh.tets.iter().enumerate() {
+            let x0 = node(tet[0]);
+            let ds =
+                Matrix3::from_columns(&[node(tet[1]) - x0, node(tet[2]) - x0, node(tet[3]) - x0]);
+            let f = ds * self.dm_inv[e];
+            let j = f.determinant();
+            if !(j > 0.0 && j.is_finite()) {
+                return Err(format!("element {e} inverted or degenerate (J = {j:e})"));
+            }
+            let quarter = 0.25 * j * self.references[e].volume;
+            for &a in tet {
+                current_nodal[a] += quarter;
+            }
+            deformation.push((f, j));
+        }
+        let mut j_nodal = vec![0.0; nn];
+        let mut pressure = vec![0.0; nn];
+        let mut j_nodal_range = (f64::INFINITY, f64::NEG_INFINITY);
+        for a in 0..nn {
+            let j = current_nodal[a] / self.nodal_reference[a];
+            j_nodal[a] = j;
+            pressure[a] = volumetric_derivatives(j, p.d_comp).0;
+            j_nodal_range = (j_nodal_range.0.min(j), j_nodal_range.1.max(j));
+        }
+        // Pass 2: the law and the element forces.
+        let mut forces = vec![0.0; 3 * nn];
+        let mut elements = Vec::with_capacity(ne);
+        let mut volume = 0.0;
+        for (e, tet) in self.mesh.tets.iter().enumerate() {
+            let (f, j) = deformation[e];
+            let reference = &self.references[e];
+            let stress =
+                IsochoricStress::new(p, &f, j, &self.mesh.fibre[e], activation, &start[e], rate);
+            let (p_bar, j_assumed) = match self.volumetric {
+                Volumetric::NodalAverage => (
+                    0.25 * (pressure[tet[0]]
+                        + pressure[tet[1]]
+                        + pressure[tet[2]]
+                        + pressure[tet[3]]),
+                    0.25 * (j_nodal[tet[0]] + j_nodal[tet[1]] + j_nodal[tet[2]] + j_nodal[tet[3]]),
+                ),
+                Volumetric::Element => (volumetric_derivatives(j, p.d_comp).0, j),
+            };
+            let cof = Matrix3::new(
+                f[(1, 1)] * f[(2, 2)] - f[(1, 2)] * f[(2, 1)],
+                f[(1, 2)] * f[(2, 0)] - f[(1, 0)] * f[(2, 2)],
+                f[(1, 0)] * f[(2, 1)] - f[(1, 1)] * f[(2, 0)],
+                f[(0, 2)] * f[(2, 1)] - f[(0, 1)] * f[(2, 2)],
+                f[(0, 0)] * f[(2, 2)] - f[(0, 2)] * f[(2, 0)],
+                f[(0, 1)] * f[(2, 0)] - f[(0, 0)] * f[(2, 1)],
+                f[(0, 1)] * f[(1, 2)] - f[(0, 2)] * f[(1, 1)],
+                f[(0, 2)] * f[(1, 0)] - f[(0, 0)] * f[(1, 2)],
+                f[(0, 0)] * f[(1, 1)] - f[(0, 1)] * f[(1, 0)],
+            );
+            let m = (stress.tau * (reference.volume / j)
+                + Matrix3::identity() * (p_bar * reference.volume))
+                * cof;
+            let mut f0 = Vector3::zeros();
+            for (&node, grad) in tet.iter().zip(&reference.grad).skip(1) {
+                let fb = m * grad;
+                f0 -= fb;
+                let a = 3 * node;
+                forces[a] += fb[0];
+                forces[a + 1] += fb[1];
+                forces[a + 2] += fb[2];
+            }
+            let a = 3 * tet[0];
+            forces[a] += f0[0];
+            forces[a + 1] += f0[1];
+            forces[a + 2] += f0[2];
+            volume += j * reference.volume;
+            elements.push(ElementState {
+                lambda_f: stress.lambda_f,
+                j,
+                j_assumed,
+                history: stress.fibre.history,
+                sigma_see: stress.fibre.sigma_see,
+            });
+        }
+        if forces.iter().any(|f| !f.is_finite()) {
+            return Err("a non-finite nodal force".into());
+        }
+        Ok(Evaluation {
+            forces,
+            d_activation: Vec::new(),
+            tangent: None,
+            elements,
+            volume,
+            j_nodal_range,
+        })
+    }
+
+    /// The sensitivities of the equilibrium at a tangent evaluation `ev`
+    /// with its factorisation `factor`: v = ∂x/∂L (K_ff v_f = −K_fp δ, v = 1
+    /// on the moved face's axial dofs), w = ∂x/∂a (K_ff w_f = −(∂R/∂a)_f,
+    /// 0 on prescribed dofs), and K δ on the free dofs (how the reaction
+    /// changes with them, K being symmetric).
+    pub fn sensitivities(
+        &self,
+        ev: &Evaluation,
+        factor: &Factor,
+    ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let values = ev.tangent.as_ref().expect("a tangent evaluation");
         let n = 3 * self.n_nodes();
         let mut delta = vec![0.0; n];
         for &d in &self.moved_axial {
@@ -546,96 +621,29 @@ impl Discretization {
         }
         let mut kd = vec![0.0; n];
         self.pattern.multiply(values, &delta, &mut kd);
-        let free = |v: &[f64]| -> Vec<f64> {
-            v.iter()
-                .zip(&self.pattern.prescribed)
-                .map(|(x, &pr)| if pr { 0.0 } else { -x })
-                .collect()
-        };
-        let mut dx = free(&kd);
-        factor.solve_in_place(&mut dx);
-        for &d in &self.moved_axial {
-            dx[d] = 1.0;
+        for (k, &pr) in kd.iter_mut().zip(&self.pattern.prescribed) {
+            if pr {
+                *k = 0.0;
+            }
         }
-        let mut kx = vec![0.0; n];
-        self.pattern.multiply(values, &dx, &mut kx);
-        let df_dl = self.reaction(&kx);
-        let mut dxa = free(&ev.d_activation);
-        factor.solve_in_place(&mut dxa);
-        self.pattern.multiply(values, &dxa, &mut kx);
-        let df_da = self.reaction(&ev.d_activation) + self.reaction(&kx);
-        Ok((df_dl, df_da))
+        let mut v: Vec<f64> = kd.iter().map(|k| -k).collect();
+        factor.solve_in_place(&mut v);
+        for &d in &self.moved_axial {
+            v[d] = 1.0;
+        }
+        let mut w: Vec<f64> = ev
+            .d_activation
+            .iter()
+            .zip(&self.pattern.prescribed)
+            .map(|(x, &pr)| if pr { 0.0 } else { -x })
+            .collect();
+        factor.solve_in_place(&mut w);
+        (v, w, kd)
     }
 
-    /// One step (or substep) to muscle length `length` from the converged
-    /// positions `x`, with the activation level going from `activation_start`
-    /// to `activation` at its end.
-    ///
-    /// Start: the linearised response from `x` — one Newton iteration at the
-    /// old positions in which the prescribed increment δ (the moved face's
-    /// axial motion) enters the linearisation, K_ff Δx_f = −(R_f + K_fp δ),
-    /// with K the tangent at the old positions and the old activation level
-    /// (an equilibrium's: pressures physical, the isochoric stress balanced)
-    /// and R the residual with the new level. Moving the face first would
-    /// start from pressures of order (ΔL/L)·2/D next to the face; the tangent
-    /// at the new level but old positions is indefinite when the level rises
-    /// (fibre tension not yet balanced by pressure: the lateral initial-stress
-    /// stiffness −T/3 exceeds the matrix's shear stiffness).
-    #[allow(clippy::too_many_arguments)]
-    pub fn step(
-        &self,
-        p: &Params,
-        x: &[f64],
-        length: f64,
-        activation_start: f64,
-        activation: f64,
-        start: &[FibreHistory],
-        rate: FibreRate,
-    ) -> Result<Solution, String> {
-        // The tangent at the old positions with the activation level the
-        // step starts from (there the isochoric stress is balanced by the
-        // pressure, so the tangent is that of an equilibrium); the residual
-        // with the new level.
-        let lin = self.evaluate(p, x, activation_start, start, rate, true)?;
-        let values = lin.tangent.as_ref().expect("tangent");
-        let forces = if activation == activation_start {
-            lin.forces.clone()
-        } else {
-            self.evaluate(p, x, activation, start, rate, false)?.forces
-        };
-        let n = x.len();
-        let mut target = x.to_vec();
-        self.apply_prescribed(&mut target, length);
-        let delta: Vec<f64> = target.iter().zip(x).map(|(t, a)| t - a).collect();
-        let mut k_delta = vec![0.0; n];
-        self.pattern.multiply(values, &delta, &mut k_delta);
-        let mut dx: Vec<f64> = (0..n)
-            .map(|i| {
-                if self.pattern.prescribed[i] {
-                    0.0
-                } else {
-                    -(forces[i] + k_delta[i])
-                }
-            })
-            .collect();
-        let factor = self.pattern.factorize(values)?;
-        factor.solve_in_place(&mut dx);
-        let predicted: Vec<f64> = (0..n)
-            .map(|i| {
-                if self.pattern.prescribed[i] {
-                    target[i]
-                } else {
-                    x[i] + dx[i]
-                }
-            })
-            .collect();
-        match self.solve(p, predicted, activation, start, rate) {
-            Ok(s) => Ok(Solution {
-                iterations: s.iterations + 1,
-                ..s
-            }),
-            Err(e) => Err(e),
-        }
+    /// Mean reference cross-section V/L0 of the mesh.
+    pub fn mean_area(&self) -> f64 {
+        self.mean_area
     }
 }
 
@@ -668,14 +676,6 @@ pub struct Evaluation {
     pub j_nodal_range: (f64, f64),
 }
 
-/// A converged equilibrium.
-#[derive(Clone, Debug)]
-pub struct Solution {
-    pub x: Vec<f64>,
-    pub evaluation: Evaluation,
-    pub iterations: usize,
-}
-
 /// The muscle's state between steps (shared discretization + per-instance
 /// fields): what [`Muscle::advance`] reads and commits.
 #[derive(Clone, Debug)]
@@ -687,6 +687,12 @@ pub struct Muscle {
     pub history: Vec<FibreHistory>,
     /// Muscle length of the converged state.
     pub length: f64,
+    /// The tangent the next step starts with ([`crate::fe::newton`]).
+    pub tangent: Option<Arc<TangentCache>>,
+    /// The last steps' increments, for the predictor.
+    pub trend: Trend,
+    /// The solver's convergence test ([`StepInput::tolerance`]).
+    pub tolerance: f64,
 }
 
 /// Result of [`Muscle::advance`].
@@ -695,11 +701,15 @@ pub struct Advance {
     pub muscle: Muscle,
     /// The last substep's converged solution.
     pub solution: Solution,
-    /// Its starting history and rate (what its tangent was formed with).
+    /// Its starting history, rate and end activation level (what its
+    /// tangent is formed with).
     pub start: Vec<FibreHistory>,
     pub rate: FibreRate,
+    pub activation: f64,
     /// Newton iterations summed over the substeps.
     pub iterations: usize,
+    /// Tangents formed and factorised, summed over the substeps.
+    pub factorizations: usize,
     pub substeps: usize,
 }
 
@@ -714,6 +724,9 @@ impl Muscle {
             x,
             history: vec![FibreHistory::REST; n],
             length: l0,
+            tangent: None,
+            trend: Trend::default(),
+            tolerance: RESIDUAL_TOLERANCE,
         }
     }
 
@@ -732,16 +745,30 @@ impl Muscle {
         let mut n = 1;
         while n <= MAX_SUBSTEPS {
             let mut x = rest.x.clone();
+            let mut cache = None;
             let mut result = None;
+            let mut iterations = 0;
+            let mut factorizations = 0;
             for i in 1..=n {
-                let l = rest.length + (length - rest.length) * i as f64 / n as f64;
-                // Length and activation level ramped together from rest.
-                let a_start = activation * (i - 1) as f64 / n as f64;
-                let a = activation * i as f64 / n as f64;
-                match disc.step(p, &x, l, a_start, a, &rest.history, FibreRate::Isometric) {
+                let input = StepInput {
+                    x: &x,
+                    length_start: rest.length + (length - rest.length) * (i - 1) as f64 / n as f64,
+                    length: rest.length + (length - rest.length) * i as f64 / n as f64,
+                    // Length and activation level ramped together from rest.
+                    activation_start: activation * (i - 1) as f64 / n as f64,
+                    activation: activation * i as f64 / n as f64,
+                    start: &rest.history,
+                    rate: FibreRate::Isometric,
+                    trend: None,
+                    tolerance: rest.tolerance,
+                };
+                match disc.solve_step(p, &input, cache.take()) {
                     Ok(s) => {
-                        x = s.x.clone();
-                        result = Some(s);
+                        iterations += s.solution.iterations;
+                        factorizations += s.solution.factorizations;
+                        x = s.solution.x.clone();
+                        cache = Some(s.cache);
+                        result = Some(s.solution);
                     }
                     Err(e) => {
                         last_error = e;
@@ -758,8 +785,15 @@ impl Muscle {
                         x: s.x.clone(),
                         history,
                         length,
+                        tangent: cache,
+                        trend: Trend::default(),
+                        tolerance: rest.tolerance,
                     },
-                    s,
+                    Solution {
+                        iterations,
+                        factorizations,
+                        ..s
+                    },
                 ));
             }
             n *= 2;
@@ -787,16 +821,36 @@ impl Muscle {
             let hs = h / n as f64;
             let mut x = self.x.clone();
             let mut hist = self.history.clone();
+            let mut cache = self.tangent.clone();
+            let mut trend = self.trend.clone();
+            let mut l_prev = self.length;
             let mut iterations = 0;
+            let mut factorizations = 0;
             let mut done = None;
             for i in 1..=n {
                 let tau = h * i as f64 / n as f64;
                 let l = self.length + (length - self.length) * i as f64 / n as f64;
                 let rate = FibreRate::Step { h: hs };
                 let a_start = activation(h * (i - 1) as f64 / n as f64);
-                match disc.step(p, &x, l, a_start, activation(tau), &hist, rate) {
-                    Ok(s) => {
+                let a_end = activation(tau);
+                let input = StepInput {
+                    x: &x,
+                    length_start: l_prev,
+                    length: l,
+                    activation_start: a_start,
+                    activation: a_end,
+                    start: &hist,
+                    rate,
+                    trend: Some(&trend),
+                    tolerance: self.tolerance,
+                };
+                match disc.solve_step(p, &input, cache.take()) {
+                    Ok(Solved {
+                        solution: s,
+                        cache: c,
+                    }) => {
                         iterations += s.iterations;
+                        factorizations += s.factorizations;
                         let new_hist: Vec<FibreHistory> =
                             s.evaluation.elements.iter().map(|e| e.history).collect();
                         if let Some((e, err)) =
@@ -815,9 +869,17 @@ impl Muscle {
                             done = None;
                             break;
                         }
+                        trend = trend.push(Increment {
+                            dx: s.x.iter().zip(&x).map(|(a, b)| a - b).collect(),
+                            dl: l - l_prev,
+                            da: a_end - a_start,
+                            h: hs,
+                        });
                         x = s.x.clone();
+                        l_prev = l;
+                        cache = Some(c);
                         let start = std::mem::replace(&mut hist, new_hist);
-                        done = Some((s, start, rate));
+                        done = Some((s, start, rate, a_end));
                     }
                     Err(e) => {
                         last_error = e;
@@ -826,18 +888,23 @@ impl Muscle {
                     }
                 }
             }
-            if let Some((solution, start, rate)) = done {
+            if let Some((solution, start, rate, activation)) = done {
                 return Ok(Advance {
                     muscle: Muscle {
                         disc: disc.clone(),
                         x,
                         history: hist,
                         length,
+                        tangent: cache,
+                        trend,
+                        tolerance: self.tolerance,
                     },
                     solution,
                     start,
                     rate,
+                    activation,
                     iterations,
+                    factorizations,
                     substeps: n,
                 });
             }
@@ -958,7 +1025,10 @@ mod tests {
         let step = |l: f64, a: f64| m.advance(&p, l, h, &|_| a).unwrap();
         let (l, a) = (0.05 * 1.12, 0.5);
         let base = step(l, a);
-        let (dfdl, dfda) = d.force_derivatives(&base.solution.evaluation).unwrap();
+        let ev = d
+            .evaluate(&p, &base.solution.x, a, &base.start, base.rate, true)
+            .unwrap();
+        let (dfdl, dfda) = d.force_derivatives(&ev).unwrap();
         let f = |s: &Advance| d.reaction(&s.solution.evaluation.forces);
         let el = 1e-7;
         let fd_l = (f(&step(l + el, a)) - f(&step(l - el, a))) / (2.0 * el);

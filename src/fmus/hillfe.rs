@@ -32,6 +32,7 @@ use std::sync::{Arc, OnceLock};
 
 use crate::fe::mesh::{FibreLayout, Resolution};
 use crate::fe::muscle::{Discretization, Ends, Muscle, Solution};
+use crate::fe::newton::{Anchor, Increment, TangentCache, Trend, TREND_LENGTH};
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
@@ -188,6 +189,14 @@ struct LastStep {
     activation: f64,
     /// ∂(level)/∂(command).
     da_du: f64,
+}
+
+/// The step length of a rate mode (`None`: isometric).
+fn rate_step(rate: FibreRate) -> Option<f64> {
+    match rate {
+        FibreRate::Step { h } => Some(h),
+        FibreRate::Isometric => None,
+    }
 }
 
 impl LastStep {
@@ -842,6 +851,26 @@ impl Model for HillFE {
                     .f64s(l.h.as_slice())
                     .f64(l.activation)
                     .f64(l.da_du);
+                // The solver's reused tangent is part of the state: its
+                // anchor, from which a restored instance forms it again
+                // (bit for bit), and the predictor's trend.
+                match &m.tangent {
+                    Some(c) => {
+                        let a = &c.anchor;
+                        w.bool(true)
+                            .f64s(&a.x)
+                            .f64(a.activation)
+                            .f64s(&hist(&a.start))
+                            .f64s(rate_step(a.rate).as_slice());
+                    }
+                    None => {
+                        w.bool(false);
+                    }
+                }
+                w.u64(m.trend.increments.len() as u64);
+                for inc in &m.trend.increments {
+                    w.f64s(&inc.dx).f64(inc.dl).f64(inc.da).f64(inc.h);
+                }
             }
             _ => {
                 w.bool(false);
@@ -951,11 +980,55 @@ impl Model for HillFE {
             {
                 return Err(bad("a non-finite value".into()));
             }
+            let n_dofs = 3 * disc.n_nodes();
+            let positions = |v: Vec<f64>| -> Result<Vec<f64>, ModelError> {
+                if v.len() != n_dofs || v.iter().any(|x| !x.is_finite()) {
+                    return Err(bad(format!("{} position values", v.len())));
+                }
+                Ok(v)
+            };
+            let tangent = if r.bool()? {
+                let ax = positions(r.f64s()?)?;
+                let activation = r.f64()?;
+                let start = pairs(r.f64s()?)?;
+                let rate = match r.f64s()?.as_slice() {
+                    [] => FibreRate::Isometric,
+                    &[h] if h.is_finite() && h > 0.0 => FibreRate::Step { h },
+                    other => return Err(bad(format!("bad anchor step {other:?}"))),
+                };
+                if !activation.is_finite() {
+                    return Err(bad("a non-finite anchor activation".into()));
+                }
+                Some(Arc::new(TangentCache::new(Anchor {
+                    x: ax,
+                    activation,
+                    start,
+                    rate,
+                })))
+            } else {
+                None
+            };
+            let n_increments = r.u64()?;
+            if n_increments > TREND_LENGTH as u64 {
+                return Err(bad(format!("{n_increments} predictor increments")));
+            }
+            let mut trend = Trend::default();
+            for _ in 0..n_increments {
+                let dx = positions(r.f64s()?)?;
+                let (dl, da, h) = (r.f64()?, r.f64()?, r.f64()?);
+                if !(dl.is_finite() && da.is_finite() && h.is_finite() && h > 0.0) {
+                    return Err(bad("a bad predictor increment".into()));
+                }
+                trend.increments.push(Increment { dx, dl, da, h });
+            }
             m.muscle = Some(Muscle {
                 disc,
                 x,
                 history,
                 length,
+                tangent,
+                trend,
+                tolerance: crate::fe::muscle::RESIDUAL_TOLERANCE,
             });
             m.last = Some(LastStep {
                 start,

@@ -209,6 +209,54 @@ pub fn fibre_response(
     }
 }
 
+/// What a residual needs of the fibre at the end of a step (no
+/// derivatives): [`fibre_stress`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FibreStress {
+    /// Fibre nominal stress W = σ_s + σ_p.
+    pub w: f64,
+    /// SEE (= CE) nominal stress σ_s.
+    pub sigma_see: f64,
+    /// History at the end of the step.
+    pub history: FibreHistory,
+}
+
+/// The stress part of [`fibre_response`] (MODEL_NOTES "Hill fibre", paper
+/// eq 4, 6–23, 26): the same CE–SEE solve, hence the same W, σ_s and
+/// history, without the consistent derivatives. When the CE can carry
+/// nothing (σ0 a f_λ ≤ 0) it is σ_s = 0, λs = 1 in closed form.
+pub fn fibre_stress(
+    p: &Params,
+    lambda_f: f64,
+    activation: f64,
+    hist: &FibreHistory,
+    rate: FibreRate,
+) -> FibreStress {
+    let (sigma_pe, _) = pe_stress(lambda_f, p.sigma0, p.a_pe);
+    let (f_l, _) = force_length(lambda_f, p.lambda_opt);
+    let drive = p.sigma0 * activation * f_l; // σ0 a f_λ
+    let (sigma, lambda_s) = if drive <= 0.0 {
+        // σ_s(1) = β (e⁰ − 1) = 0 exactly, as in the solves below.
+        (0.0, 1.0)
+    } else {
+        match rate {
+            FibreRate::Isometric => (drive, see_stretch_for_stress(drive, p.alpha, p.beta)),
+            FibreRate::Step { h } => {
+                let sol = step_solve(p, lambda_f, drive, hist, h);
+                (sol.sigma, sol.lambda_s)
+            }
+        }
+    };
+    FibreStress {
+        w: sigma + sigma_pe,
+        sigma_see: sigma,
+        history: FibreHistory {
+            lambda_s,
+            lambda_m: ce_stretch(p.k, lambda_f, lambda_s),
+        },
+    }
+}
+
 /// The SEE stretch of a step with the curve values at it.
 struct SeeSolution {
     lambda_s: f64,

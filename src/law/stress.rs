@@ -36,7 +36,9 @@
 
 use nalgebra::{Matrix3, Matrix6, Vector3};
 
-use super::hill_fibre::{fibre_response, FibreHistory, FibreRate, FibreResponse};
+use super::hill_fibre::{
+    fibre_response, fibre_stress, FibreHistory, FibreRate, FibreResponse, FibreStress,
+};
 use super::isotropic_matrix::matrix_derivatives;
 use super::params::Params;
 use super::volumetric::volumetric_derivatives;
@@ -46,6 +48,97 @@ use super::volumetric::volumetric_derivatives;
 #[inline]
 pub fn dev(x: &Matrix3<f64>) -> Matrix3<f64> {
     x - Matrix3::identity() * (x.trace() / 3.0)
+}
+
+/// J^(−1/3) for J > 0. Near J = 1 (every nearly incompressible state) by
+/// the series 1 − e/3 + 2e²/9 (e = J − 1, relative error ≤ 0.18 |e|³) and
+/// two Newton steps on y³ J = 1, y ← y (4 − J y³)/3, each of which about
+/// squares the relative error (ε → 2ε²): below 1e-17 for |e| ≤ 0.05, i.e.
+/// to rounding; elsewhere 1/cbrt(J).
+#[inline]
+pub fn inverse_cbrt(j: f64) -> f64 {
+    let e = j - 1.0;
+    if e.abs() <= 0.05 {
+        let mut y = 1.0 - e * (1.0 / 3.0) + e * e * (2.0 / 9.0);
+        y *= (4.0 - j * y * y * y) * (1.0 / 3.0);
+        y * (4.0 - j * y * y * y) * (1.0 / 3.0)
+    } else {
+        j.cbrt().recip()
+    }
+}
+
+/// The kinematic quantities of MODEL_NOTES "Kinematics" at F with
+/// J = det F given: B̄ = J^(−2/3) F Fᵀ, Ī1 = tr B̄, λ̄f = |J^(−1/3) F A| and
+/// a = J^(−1/3) F A / λ̄f.
+#[derive(Clone, Copy, Debug)]
+pub struct Kinematics {
+    pub j: f64,
+    pub b_bar: Matrix3<f64>,
+    pub i1_bar: f64,
+    pub lambda_f: f64,
+    pub a: Vector3<f64>,
+}
+
+impl Kinematics {
+    /// MODEL_NOTES "Kinematics" at `f` with `j` = det F (> 0) and the
+    /// reference unit fibre direction `fibre_dir`.
+    #[inline]
+    pub fn new(f: &Matrix3<f64>, j: f64, fibre_dir: &Vector3<f64>) -> Kinematics {
+        let jm13 = inverse_cbrt(j);
+        let b_bar = (f * f.transpose()) * (jm13 * jm13);
+        let i1_bar = b_bar.trace();
+        let fa = f * fibre_dir * jm13; // J^(−1/3) F A
+        let lambda_f = fa.norm();
+        Kinematics {
+            j,
+            b_bar,
+            i1_bar,
+            lambda_f,
+            a: fa / lambda_f,
+        }
+    }
+}
+
+/// The isochoric Kirchhoff stress of eq 30 (its bracket, MODEL_NOTES
+/// "Energy and stress") with what a residual needs of the fibre, without the
+/// tangent's derivatives: the stress-only twin of [`LawPoint`] (same
+/// arithmetic, so the same values).
+#[derive(Clone, Copy, Debug)]
+pub struct IsochoricStress {
+    /// τ_iso = 2 U_I' dev B̄ + λ̄f W dev(a⊗a).
+    pub tau: Matrix3<f64>,
+    /// det F.
+    pub j: f64,
+    /// λ̄f.
+    pub lambda_f: f64,
+    /// W, σ_s and the new history (MODEL_NOTES "Hill fibre").
+    pub fibre: FibreStress,
+}
+
+impl IsochoricStress {
+    /// [`LawPoint::kirchhoff_isochoric`] at `f` with `j` = det F given
+    /// (MODEL_NOTES "Kinematics", "Energy and stress", "Hill fibre").
+    #[inline]
+    pub fn new(
+        p: &Params,
+        f: &Matrix3<f64>,
+        j: f64,
+        fibre_dir: &Vector3<f64>,
+        activation: f64,
+        hist: &FibreHistory,
+        rate: FibreRate,
+    ) -> IsochoricStress {
+        let k = Kinematics::new(f, j, fibre_dir);
+        let fibre = fibre_stress(p, k.lambda_f, activation, hist, rate);
+        let u1 = matrix_derivatives(k.i1_bar, p.b, p.c).0;
+        IsochoricStress {
+            tau: dev(&k.b_bar) * (2.0 * u1)
+                + dev(&(k.a * k.a.transpose())) * (k.lambda_f * fibre.w),
+            j,
+            lambda_f: k.lambda_f,
+            fibre,
+        }
+    }
 }
 
 /// The law evaluated at one material point at the end of a step: kinematic
@@ -84,22 +177,16 @@ impl LawPoint {
         hist: &FibreHistory,
         rate: FibreRate,
     ) -> LawPoint {
-        let j = f.determinant();
-        let jm13 = j.cbrt().recip();
-        let b_bar = (f * f.transpose()) * (jm13 * jm13);
-        let i1_bar = b_bar.trace();
-        let fa = f * fibre_dir * jm13; // J^(−1/3) F A
-        let lambda_f = fa.norm();
-        let a = fa / lambda_f;
-        let fibre = fibre_response(p, lambda_f, activation, hist, rate);
+        let k = Kinematics::new(f, f.determinant(), fibre_dir);
+        let fibre = fibre_response(p, k.lambda_f, activation, hist, rate);
         LawPoint {
-            j,
-            b_bar,
-            i1_bar,
-            lambda_f,
-            a,
-            du_i: matrix_derivatives(i1_bar, p.b, p.c),
-            du_j: volumetric_derivatives(j, p.d_comp),
+            j: k.j,
+            b_bar: k.b_bar,
+            i1_bar: k.i1_bar,
+            lambda_f: k.lambda_f,
+            a: k.a,
+            du_i: matrix_derivatives(k.i1_bar, p.b, p.c),
+            du_j: volumetric_derivatives(k.j, p.d_comp),
             fibre,
         }
     }
@@ -484,5 +571,53 @@ mod tests {
             FibreRate::Isometric,
         );
         assert!(pt.cauchy().norm() < 1e-9);
+    }
+
+    /// The stress-only path is the same arithmetic as [`LawPoint`]: the
+    /// same τ_iso, λ̄f, W, σ_s and history, bit for bit, passive and active,
+    /// isometric and rate-dependent.
+    #[test]
+    fn isochoric_stress_equals_the_law_point_bit_for_bit() {
+        let p = Params::default();
+        let dir = Vector3::new(0.0, 0.6, 0.8);
+        let hist = FibreHistory {
+            lambda_s: 1.2,
+            lambda_m: 0.95,
+        };
+        for seed in 1..60u64 {
+            let f = sample_f(seed * 104_729);
+            for (a, rate) in [
+                (0.0, FibreRate::Isometric),
+                (0.7, FibreRate::Isometric),
+                (0.0, FibreRate::Step { h: 1e-3 }),
+                (0.9, FibreRate::Step { h: 1e-3 }),
+            ] {
+                let pt = LawPoint::new(&p, &f, &dir, a, &hist, rate);
+                let st = IsochoricStress::new(&p, &f, f.determinant(), &dir, a, &hist, rate);
+                assert_eq!(st.tau, pt.kirchhoff_isochoric(), "seed {seed}, a {a}");
+                assert_eq!(st.lambda_f, pt.lambda_f);
+                assert_eq!(st.fibre.w, pt.fibre.w);
+                assert_eq!(st.fibre.sigma_see, pt.fibre.sigma_see);
+                assert_eq!(st.fibre.history, pt.fibre.history);
+            }
+        }
+    }
+
+    /// J^(−1/3) by the series and Newton steps agrees with 1/cbrt to within
+    /// 2 ulps across its range, and is continuous where it hands over.
+    #[test]
+    fn inverse_cbrt_is_accurate_to_rounding() {
+        let mut j = 0.9;
+        while j < 1.1 {
+            let (fast, reference) = (inverse_cbrt(j), j.cbrt().recip());
+            assert!(
+                (fast - reference).abs() <= 2.0 * f64::EPSILON * reference,
+                "J = {j}: {fast} vs {reference}"
+            );
+            j += 1.3e-5;
+        }
+        for j in [1e-6, 0.3, 0.95, 1.05, 3.0, 1e6] {
+            assert_eq!(inverse_cbrt(j), j.cbrt().recip());
+        }
     }
 }

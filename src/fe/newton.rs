@@ -1,0 +1,785 @@
+//! The quasi-static equilibrium solve of the FE muscle: Newton's method with
+//! a factorised tangent that is reused across iterations and steps while it
+//! still converges fast (issue 3, "Formulation and solver").
+//!
+//! # Why reuse the tangent
+//!
+//! Forming and factorising the tangent of the default mesh costs about 20
+//! residual evaluations; over a 1 ms step of a muscle the tangent changes by
+//! ~1e-3 relative. So each iteration solves with the factorisation of a
+//! tangent K̃ formed at an earlier configuration (the *anchor*, possibly
+//! several steps old) — modified Newton, which converges linearly with rate
+//! ρ ≈ ‖K̃⁻¹(K − K̃)‖ — and the tangent is formed afresh at the current
+//! iterate when that stops paying: when an iteration contracts the residual
+//! by less than [`REFRESH_CONTRACTION`], when the step needs more than
+//! [`REFRESH_ITERATIONS`] iterations, or when a stale correction does not
+//! decrease the residual at all. With a tangent formed at the current iterate
+//! the iteration is Newton's method with a backtracking line search (as
+//! before this reuse).
+//!
+//! # Predictor
+//!
+//! The step starts from x_n + s Δx_n + v (ΔL − s ΔL_n) + w (Δa − s Δa_n):
+//! the last step's increment Δx_n extrapolated to the new step (s = h/h_n),
+//! corrected to first order for the part of the input change the
+//! extrapolation does not predict, with the anchor's sensitivities v = ∂x/∂L
+//! (the moved face pulled by a unit length, the interior following) and
+//! w = ∂x/∂a. Without a last step (after initialization) it is
+//! x_n + v ΔL + w Δa, the linearised response of the last equilibrium.
+//!
+//! # Determinism
+//!
+//! What an iteration does depends only on (x, the anchor, the inputs); the
+//! factorisation is a function of the anchor (positions, activation level,
+//! start history and rate mode) alone. The anchor is part of the muscle's
+//! state, so a state saved and restored — even in another process, which
+//! rebuilds the factorisation from the anchor — continues bit for bit.
+
+use std::fmt;
+use std::sync::{Arc, OnceLock};
+
+use crate::fe::assembly::Factor;
+use crate::fe::muscle::{Discretization, Evaluation};
+use crate::law::{FibreHistory, FibreRate, Params};
+
+/// Newton iterations per (sub)step before it counts as not converged.
+pub const MAX_NEWTON_ITERATIONS: usize = 25;
+/// Default tolerance of the convergence test ([`StepInput::tolerance`],
+/// `Discretization::converged`): the solution's error estimate moves no
+/// node by more than this × L0 and the force by no more than this × the
+/// larger of |F| and σ0 A.
+pub const RESIDUAL_TOLERANCE: f64 = 1e-10;
+/// A correction below this × L0 is at the rounding level of positions of
+/// order L0 (8 ulps): converged whatever the contraction.
+pub const ROUNDING_CORRECTION: f64 = 8.0 * f64::EPSILON;
+/// Smallest line-search step before a Newton iteration counts as failed.
+const MIN_LINE_SEARCH: f64 = 1.0 / 256.0;
+/// A reused tangent whose iteration contracts the correction by less than
+/// this (θ = ‖Δx̄‖/‖Δx‖ > c) is formed afresh at the next iterate.
+pub const REFRESH_CONTRACTION: f64 = 0.25;
+/// A step that has taken this many iterations with a reused tangent forms it
+/// afresh.
+pub const REFRESH_ITERATIONS: usize = 4;
+
+/// Where a tangent was formed: enough to form it again, bit for bit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Anchor {
+    /// Node positions, flattened.
+    pub x: Vec<f64>,
+    /// Activation level.
+    pub activation: f64,
+    /// Element fibre histories at the start of the step it was formed in.
+    pub start: Vec<FibreHistory>,
+    /// Rate mode of that step.
+    pub rate: FibreRate,
+}
+
+/// A factorised tangent with the sensitivities the predictor uses.
+pub struct Tangent {
+    pub factor: Factor,
+    /// v = ∂x/∂L: K_ff v_f = −K_fp δ, δ the moved face's unit axial motion
+    /// (1 at those dofs).
+    pub d_length: Vec<f64>,
+    /// w = ∂x/∂a at fixed length: K_ff w_f = −(∂R/∂a)_f.
+    pub d_activation: Vec<f64>,
+    /// K δ on the free dofs (0 on the prescribed ones): how the reaction
+    /// force changes with the free dofs (K symmetric).
+    pub d_force: Vec<f64>,
+}
+
+/// An anchor and, formed on first use, its factorised tangent (shared by
+/// every copy of the muscle state that has this anchor).
+pub struct TangentCache {
+    pub anchor: Anchor,
+    built: OnceLock<Result<Tangent, String>>,
+}
+
+impl fmt::Debug for TangentCache {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("TangentCache")
+            .field("activation", &self.anchor.activation)
+            .field("rate", &self.anchor.rate)
+            .field("built", &self.built.get().map(|r| r.is_ok()))
+            .finish()
+    }
+}
+
+impl TangentCache {
+    /// An anchor whose tangent is formed when first needed.
+    pub fn new(anchor: Anchor) -> TangentCache {
+        TangentCache {
+            anchor,
+            built: OnceLock::new(),
+        }
+    }
+
+    /// The factorised tangent at the anchor (formed on first call).
+    pub fn tangent(&self, disc: &Discretization, p: &Params) -> Result<&Tangent, String> {
+        self.built
+            .get_or_init(|| form_tangent(disc, p, &self.anchor))
+            .as_ref()
+            .map_err(|e| e.clone())
+    }
+}
+
+/// Form, factorise and differentiate the tangent at `anchor`.
+fn form_tangent(disc: &Discretization, p: &Params, anchor: &Anchor) -> Result<Tangent, String> {
+    let ev = disc.evaluate(
+        p,
+        &anchor.x,
+        anchor.activation,
+        &anchor.start,
+        anchor.rate,
+        true,
+    )?;
+    let values = ev.tangent.as_ref().expect("tangent requested");
+    let factor = disc.pattern.factorize(values)?;
+    let (d_length, d_activation, d_force) = disc.sensitivities(&ev, &factor);
+    Ok(Tangent {
+        factor,
+        d_length,
+        d_activation,
+        d_force,
+    })
+}
+
+/// One committed (sub)step's increments.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Increment {
+    /// x_n − x_{n−1}.
+    pub dx: Vec<f64>,
+    /// Its length change, activation-level change and step length.
+    pub dl: f64,
+    pub da: f64,
+    pub h: f64,
+}
+
+/// Number of past increments the predictor extrapolates from: the
+/// increment's rate is extrapolated by the polynomial through the last
+/// [`TREND_LENGTH`] rates (quadratic: the positions to third order).
+pub const TREND_LENGTH: usize = 3;
+
+/// The last steps' increments, most recent first (at most
+/// [`TREND_LENGTH`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Trend {
+    pub increments: Vec<Increment>,
+}
+
+impl Trend {
+    /// The trend with `inc` as the most recent increment.
+    pub fn push(&self, inc: Increment) -> Trend {
+        let mut increments = Vec::with_capacity(TREND_LENGTH);
+        increments.push(inc);
+        increments.extend(self.increments.iter().take(TREND_LENGTH - 1).cloned());
+        Trend { increments }
+    }
+
+    /// Weights c_i such that the increment of a new step of length `h` is
+    /// predicted as Σ c_i Δ_i (Δ_i the i-th most recent increment): the rates
+    /// Δ_i / h_i, taken at the middle of their steps, extrapolated by their
+    /// interpolating polynomial to the middle of the new step, times h. Uses
+    /// the longest run of recent steps whose lengths are within a factor 2
+    /// of each other and of h (variable-step extrapolation stays well
+    /// conditioned); empty when there is none.
+    pub fn weights(&self, h: f64) -> Vec<f64> {
+        let mut m = 0;
+        let mut prev = h;
+        for inc in &self.increments {
+            if !(inc.h > 0.0 && (0.5..=2.0).contains(&(inc.h / prev))) {
+                break;
+            }
+            prev = inc.h;
+            m += 1;
+        }
+        // Midpoints of the past steps, relative to the end of the last one.
+        let mut nodes = Vec::with_capacity(m);
+        let mut end = 0.0;
+        for inc in &self.increments[..m] {
+            nodes.push(end - 0.5 * inc.h);
+            end -= inc.h;
+        }
+        let target = 0.5 * h;
+        (0..m)
+            .map(|i| {
+                let lagrange: f64 = (0..m)
+                    .filter(|&j| j != i)
+                    .map(|j| (target - nodes[j]) / (nodes[i] - nodes[j]))
+                    .product();
+                lagrange * h / self.increments[i].h
+            })
+            .collect()
+    }
+}
+
+/// A converged equilibrium.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    pub x: Vec<f64>,
+    pub evaluation: Evaluation,
+    /// Newton corrections (linear solves) taken.
+    pub iterations: usize,
+    /// Tangents formed and factorised.
+    pub factorizations: usize,
+}
+
+/// One (sub)step's problem.
+pub struct StepInput<'a> {
+    /// Positions of the last equilibrium.
+    pub x: &'a [f64],
+    /// Its length and the step's end length.
+    pub length_start: f64,
+    pub length: f64,
+    /// Activation level at the start and end of the step.
+    pub activation_start: f64,
+    pub activation: f64,
+    /// Fibre histories at the start of the step and the rate mode.
+    pub start: &'a [FibreHistory],
+    pub rate: FibreRate,
+    /// The last steps' increments (`None`: predict from the sensitivities
+    /// alone).
+    pub trend: Option<&'a Trend>,
+    /// The convergence test's tolerance ([`RESIDUAL_TOLERANCE`]).
+    pub tolerance: f64,
+}
+
+/// A solved (sub)step: the equilibrium and the tangent to use next.
+pub struct Solved {
+    pub solution: Solution,
+    pub cache: Arc<TangentCache>,
+}
+
+impl Discretization {
+    /// Solve one (sub)step (module docs): with a trend and a tangent to
+    /// reuse, the extrapolating predictor and [`Self::iterate`]; else, or
+    /// when that fails, [`Self::robust`].
+    pub fn solve_step(
+        &self,
+        p: &Params,
+        input: &StepInput<'_>,
+        cache: Option<Arc<TangentCache>>,
+    ) -> Result<Solved, String> {
+        let h = match input.rate {
+            FibreRate::Step { h } => h,
+            FibreRate::Isometric => 0.0,
+        };
+        let weights = input.trend.map_or(Vec::new(), |t| t.weights(h));
+        let mut spent = Counts::default();
+        let mut first_error = None;
+        if let (Some(c), Some(tr), false) = (&cache, input.trend, weights.is_empty()) {
+            match self.extrapolated(p, input, tr, &weights, c.clone(), &mut spent) {
+                Ok(s) => return Ok(s),
+                Err(e) => first_error = Some(e),
+            }
+        }
+        self.robust(p, input, spent).map_err(|e| match first_error {
+            Some(f) => format!("{e} (from the extrapolated start: {f})"),
+            None => e,
+        })
+    }
+
+    /// The fast path: the last steps' increments extrapolated, corrected to
+    /// first order for the input change they do not predict with the reused
+    /// tangent's sensitivities (module docs), then [`Self::iterate`].
+    fn extrapolated(
+        &self,
+        p: &Params,
+        input: &StepInput<'_>,
+        trend: &Trend,
+        weights: &[f64],
+        cache: Arc<TangentCache>,
+        spent: &mut Counts,
+    ) -> Result<Solved, String> {
+        let mut x = input.x.to_vec();
+        let (mut pl, mut pa) = (0.0, 0.0);
+        for (inc, &c) in trend.increments.iter().zip(weights) {
+            for (xi, di) in x.iter_mut().zip(&inc.dx) {
+                *xi += c * di;
+            }
+            pl += c * inc.dl;
+            pa += c * inc.da;
+        }
+        let cl = input.length - input.length_start - pl;
+        let ca = input.activation - input.activation_start - pa;
+        let t = spent.tangent(&cache, self, p)?;
+        for ((xi, v), w) in x.iter_mut().zip(&t.d_length).zip(&t.d_activation) {
+            *xi += v * cl + w * ca;
+        }
+        self.apply_prescribed(&mut x, input.length);
+        self.iterate(p, input, x, cache, Mode::Reuse, Merit::Natural, spent)
+    }
+
+    /// −R on the free dofs, 0 on the prescribed ones.
+    fn free_negated(&self, forces: &[f64]) -> Vec<f64> {
+        forces
+            .iter()
+            .zip(&self.pattern.prescribed)
+            .map(|(f, &pr)| if pr { 0.0 } else { -f })
+            .collect()
+    }
+
+    /// Newton's method with the tangent of `cache` — reused while it
+    /// contracts ([`Mode::Reuse`]) or formed at every iterate
+    /// ([`Mode::Fresh`]). From the iterate x with correction Δx = −K̃⁻¹R(x),
+    /// a trial x + αΔx is accepted when
+    /// - ([`Merit::Natural`], affine-covariant, Deuflhard) its simplified
+    ///   correction Δx̄ = −K̃⁻¹R(x + αΔx) is smaller, θ = ‖Δx̄‖/‖Δx‖ ≤ 1 − α/4,
+    ///   and Δx̄ is then the next correction. The test is in the corrections,
+    ///   not in the residual: with D = 1e-9 the residual after a step is
+    ///   dominated by the pressure of its second-order volume change, 2/D
+    ///   times an O(‖∇Δx‖²) term — large in any residual norm, but a small
+    ///   correction, as K̃ carries the same 2/D;
+    /// - ([`Merit::Residual`]) the residual's norm decreases,
+    ///   ‖R(x + αΔx)‖ ≤ (1 − 10⁻⁴ α) ‖R(x)‖ — the classic damped Newton, which
+    ///   finds its way from starts the natural test rejects.
+    ///
+    /// With [`Mode::Reuse`] the tangent is formed afresh at the current
+    /// iterate when θ exceeds [`REFRESH_CONTRACTION`], after
+    /// [`REFRESH_ITERATIONS`] iterations with a reused tangent, or when a
+    /// reused tangent fails the test; with a tangent formed at the iterate,
+    /// α is halved down to [`MIN_LINE_SEARCH`]. Convergence:
+    /// [`Self::converged`].
+    #[allow(clippy::too_many_arguments)]
+    fn iterate(
+        &self,
+        p: &Params,
+        input: &StepInput<'_>,
+        mut x: Vec<f64>,
+        mut cache: Arc<TangentCache>,
+        mode: Mode,
+        merit: Merit,
+        spent: &mut Counts,
+    ) -> Result<Solved, String> {
+        let (activation, start, rate) = (input.activation, input.start, input.rate);
+        let form = |x: &[f64]| {
+            Arc::new(TangentCache::new(Anchor {
+                x: x.to_vec(),
+                activation,
+                start: start.to_vec(),
+                rate,
+            }))
+        };
+        let mut ev = self.evaluate(p, &x, activation, start, rate, false)?;
+        if mode == Mode::Fresh {
+            cache = form(&x);
+        }
+        let mut t = spent.tangent(&cache, self, p)?;
+        let mut dx = self.free_negated(&ev.forces);
+        t.factor.solve_in_place(&mut dx);
+        spent.solves += 1;
+        // The contraction measured in this step, whether the tangent was
+        // formed at the current iterate, how often it has been reused.
+        let mut theta: Option<f64> = None;
+        let mut fresh = mode == Mode::Fresh;
+        let mut reused = 0;
+        let mut refresh = false;
+        let mut iterations = 0;
+        loop {
+            if self.converged(p, &ev, &dx, theta, t, input.tolerance) {
+                return Ok(Solved {
+                    solution: Solution {
+                        x,
+                        evaluation: ev,
+                        iterations: spent.solves,
+                        factorizations: spent.factorizations,
+                    },
+                    cache,
+                });
+            }
+            if iterations == MAX_NEWTON_ITERATIONS {
+                return Err(format!(
+                    "no convergence in {MAX_NEWTON_ITERATIONS} Newton iterations (correction {:e} m, residual {:e} N)",
+                    max_abs(&dx),
+                    self.residual_norm(&ev.forces)
+                ));
+            }
+            iterations += 1;
+            if (refresh || mode == Mode::Fresh) && !fresh {
+                cache = form(&x);
+                t = spent.tangent(&cache, self, p)?;
+                let previous = norm2(&dx);
+                dx = self.free_negated(&ev.forces);
+                t.factor.solve_in_place(&mut dx);
+                spent.solves += 1;
+                // Across a tangent change the contraction is the ratio of
+                // the new correction to the last one.
+                theta = theta.map(|_| norm2(&dx) / previous);
+                fresh = true;
+                reused = 0;
+            }
+            let norm = norm2(&dx);
+            let r2 = self.residual_norm2(&ev.forces);
+            let mut alpha = 1.0;
+            let accepted = loop {
+                let trial: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
+                if let Ok(e) = self.evaluate(p, &trial, activation, start, rate, false) {
+                    let decreased = match merit {
+                        Merit::Residual => {
+                            self.residual_norm2(&e.forces) <= (1.0 - 1e-4 * alpha) * r2
+                        }
+                        Merit::Natural => true,
+                    };
+                    if decreased {
+                        let mut next = self.free_negated(&e.forces);
+                        t.factor.solve_in_place(&mut next);
+                        spent.solves += 1;
+                        let th = norm2(&next) / norm;
+                        if merit == Merit::Residual || th <= 1.0 - 0.25 * alpha {
+                            break Some((trial, e, next, th));
+                        }
+                    }
+                }
+                if !fresh {
+                    break None;
+                }
+                alpha *= 0.5;
+                if alpha < MIN_LINE_SEARCH {
+                    return Err(format!(
+                        "Newton: no decrease along the Newton direction (correction {norm:e} m, residual {r2:e} N)"
+                    ));
+                }
+            };
+            refresh = match accepted {
+                Some((trial, e, next, th)) => {
+                    x = trial;
+                    ev = e;
+                    dx = next;
+                    theta = Some(th);
+                    reused = if fresh { 0 } else { reused + 1 };
+                    fresh = false;
+                    th > REFRESH_CONTRACTION || reused >= REFRESH_ITERATIONS
+                }
+                // A reused tangent that fails the test: form it here.
+                None => true,
+            };
+        }
+    }
+
+    /// The convergence test at evaluation `ev` with the correction Δx there
+    /// (module docs): Δx is at the rounding level of the positions
+    /// ([`ROUNDING_CORRECTION`]), or the tangent's contraction θ ≤ 1/2 has been measured in
+    /// this step, so that the remaining error is about ‖Δx‖/(1 − θ), and by
+    /// that estimate no node is more than tol · L0 from the solution and the
+    /// reaction force not more than tol · max(|F|, σ0 A) from its value
+    /// there (its change (K̃ δ)·Δx: K̃ δ is the tangent's moved-face row
+    /// sum; σ0 A is the muscle's maximum isometric force on its mean
+    /// section).
+    fn converged(
+        &self,
+        p: &Params,
+        ev: &Evaluation,
+        dx: &[f64],
+        theta: Option<f64>,
+        t: &Tangent,
+        tolerance: f64,
+    ) -> bool {
+        // A correction at the rounding level of the positions (a few ulps):
+        // nothing representable is left to correct.
+        if max_abs(dx) <= ROUNDING_CORRECTION * self.l0 {
+            return true;
+        }
+        match theta {
+            Some(th) if th <= 0.5 => {
+                let amplification = 1.0 / (1.0 - th);
+                let df: f64 = t.d_force.iter().zip(dx).map(|(k, d)| k * d).sum();
+                let scale = self
+                    .reaction(&ev.forces)
+                    .abs()
+                    .max(p.sigma0 * self.mean_area());
+                amplification * df.abs() <= tolerance * scale
+                    && amplification * max_abs(dx) <= tolerance * self.l0
+            }
+            _ => false,
+        }
+    }
+
+    /// The linearised response of the last equilibrium x_n as a start, with
+    /// the tangent formed there (at the level the step starts from, an
+    /// equilibrium's: positive definite where the state is stable) and the
+    /// residual at the new level and rate: x_f = x_n,f + v_f ΔL −
+    /// K_ff⁻¹ R_f(x_n). (Moving the face alone would start from pressures of
+    /// order (ΔL/L)·2/D next to it; the tangent at the new level but old
+    /// positions is indefinite when the level rises: fibre tension not yet
+    /// balanced by pressure.) From it, [`Self::iterate`] with the natural
+    /// test, and when that fails the damped Newton method (the solver before
+    /// tangent reuse).
+    fn robust(
+        &self,
+        p: &Params,
+        input: &StepInput<'_>,
+        mut spent: Counts,
+    ) -> Result<Solved, String> {
+        let (activation, start, rate) = (input.activation, input.start, input.rate);
+        let cache = Arc::new(TangentCache::new(Anchor {
+            x: input.x.to_vec(),
+            activation: input.activation_start,
+            start: start.to_vec(),
+            rate,
+        }));
+        let t = spent.tangent(&cache, self, p)?;
+        let r = self.evaluate(p, input.x, activation, start, rate, false)?;
+        let mut dx = self.free_negated(&r.forces);
+        t.factor.solve_in_place(&mut dx);
+        spent.solves += 1;
+        let dl = input.length - input.length_start;
+        let mut x = input.x.to_vec();
+        for ((xi, d), v) in x.iter_mut().zip(&dx).zip(&t.d_length) {
+            *xi += d + v * dl;
+        }
+        self.apply_prescribed(&mut x, input.length);
+        let mut tried = spent;
+        let natural = self.iterate(
+            p,
+            input,
+            x.clone(),
+            cache.clone(),
+            Mode::Reuse,
+            Merit::Natural,
+            &mut tried,
+        );
+        match natural {
+            Ok(s) => Ok(s),
+            Err(_) => self.iterate(p, input, x, cache, Mode::Fresh, Merit::Residual, &mut tried),
+        }
+    }
+
+    /// Euclidean norm of the residual over the free dofs.
+    fn residual_norm2(&self, forces: &[f64]) -> f64 {
+        forces
+            .iter()
+            .zip(&self.pattern.prescribed)
+            .filter(|(_, &p)| !p)
+            .map(|(f, _)| f * f)
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Largest residual over the free dofs.
+    fn residual_norm(&self, forces: &[f64]) -> f64 {
+        forces
+            .iter()
+            .zip(&self.pattern.prescribed)
+            .filter(|(_, &p)| !p)
+            .fold(0.0, |m, (f, _)| m.max(f.abs()))
+    }
+}
+
+/// Whether [`Discretization::iterate`] reuses its tangent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    Reuse,
+    Fresh,
+}
+
+/// The acceptance test of [`Discretization::iterate`]'s line search.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Merit {
+    Natural,
+    Residual,
+}
+
+/// What a solve spent.
+#[derive(Clone, Copy, Debug, Default)]
+struct Counts {
+    solves: usize,
+    factorizations: usize,
+}
+
+impl Counts {
+    /// The tangent of `cache`, counting its factorisation when it is formed
+    /// here.
+    fn tangent<'c>(
+        &mut self,
+        cache: &'c TangentCache,
+        disc: &Discretization,
+        p: &Params,
+    ) -> Result<&'c Tangent, String> {
+        if cache.built.get().is_none() {
+            self.factorizations += 1;
+        }
+        cache.tangent(disc, p)
+    }
+}
+
+fn norm2(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fe::mesh::{FibreLayout, Resolution};
+    use crate::fe::muscle::{Ends, Muscle};
+
+    fn specimen(n_axial: usize, n_radial: usize) -> Arc<Discretization> {
+        Arc::new(
+            Discretization::fusiform_graded(
+                0.05,
+                crate::specimen::MEAN_AREA,
+                Resolution { n_axial, n_radial },
+                0.9,
+                FibreLayout::Axial,
+                Ends::Clamped,
+            )
+            .unwrap(),
+        )
+    }
+
+    /// The Newton correction at a converged step with a tangent formed there:
+    /// (max |Δx| / L0, |δF| / max(|F|, σ0 A)) — how far the solution is from
+    /// the equilibrium, independently of how it was reached.
+    fn distance_to_equilibrium(
+        d: &Discretization,
+        p: &Params,
+        r: &crate::fe::muscle::Advance,
+    ) -> (f64, f64) {
+        let ev = &r.solution.evaluation;
+        let level = r.activation;
+        let t = form_tangent(
+            d,
+            p,
+            &Anchor {
+                x: r.solution.x.clone(),
+                activation: level,
+                start: r.start.clone(),
+                rate: r.rate,
+            },
+        )
+        .unwrap();
+        let mut dx = d.free_negated(&ev.forces);
+        t.factor.solve_in_place(&mut dx);
+        let df: f64 = t.d_force.iter().zip(&dx).map(|(k, x)| k * x).sum();
+        let scale = d.reaction(&ev.forces).abs().max(p.sigma0 * d.mean_area());
+        (max_abs(&dx) / d.l0, df.abs() / scale)
+    }
+
+    /// The paper's activated elongation (MODEL_NOTES "Experiments"), on a
+    /// small mesh: activated at rest length for 0.1 s (u = 1), then pulled
+    /// at 5 mm/s, 1 ms steps. Every step's result is an equilibrium to the
+    /// tolerance — the Newton correction with a tangent formed at the result
+    /// moves no node by more than 10 × the tolerance × L0 and the force by
+    /// no more than 10 × the tolerance × max(|F|, σ0 A) — and in the pull
+    /// the reused tangent carries most steps (factorisations in fewer than
+    /// a quarter of them).
+    #[test]
+    fn reused_tangent_converges_to_the_equilibrium() {
+        let p = Params::default();
+        let d = specimen(6, 1);
+        let h = 1e-3;
+        let (mut m, _) = Muscle::isometric(d.clone(), &p, 0.05, 0.0).unwrap();
+        let level = |t: f64| 1.0 - (-p.s * t).exp();
+        let (hold, pull): (usize, usize) = (100, 60);
+        let mut pull_factorizations = 0;
+        for k in 0..hold + pull {
+            let t0 = k as f64 * h;
+            let l = 0.05 + 0.005 * h * (k + 1).saturating_sub(hold) as f64;
+            let r = m.advance(&p, l, h, &|tau| level(t0 + tau)).unwrap();
+            if k >= hold {
+                pull_factorizations += r.factorizations;
+            }
+            let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+            let tol = 10.0 * RESIDUAL_TOLERANCE;
+            assert!(dx < tol && df < tol, "step {k}: |dx|/L0 {dx:e}, dF {df:e}");
+            m = r.muscle;
+        }
+        assert!(
+            pull_factorizations < pull / 4,
+            "{pull_factorizations} factorisations in {pull} steps of the pull"
+        );
+    }
+
+    /// The factorisation is a function of the anchor: a muscle whose cached
+    /// tangent is dropped and formed again from the anchor alone (what a
+    /// state restored in another process does) continues bit for bit.
+    #[test]
+    fn a_tangent_formed_again_from_its_anchor_continues_bit_for_bit() {
+        let p = Params::default();
+        let d = specimen(6, 1);
+        let h = 1e-3;
+        let (mut m, _) = Muscle::isometric(d.clone(), &p, 0.05, 0.0).unwrap();
+        let pull = |k: usize| 0.05 * (1.0 + 0.003 * k as f64);
+        for k in 1..=20 {
+            m = m.advance(&p, pull(k), h, &|_| 0.6).unwrap().muscle;
+        }
+        let restored = Muscle {
+            tangent: m
+                .tangent
+                .as_ref()
+                .map(|c| Arc::new(TangentCache::new(c.anchor.clone()))),
+            ..m.clone()
+        };
+        assert!(m.tangent.is_some() && !m.trend.increments.is_empty());
+        let (mut a, mut b) = (m, restored);
+        for k in 21..=40 {
+            let ra = a.advance(&p, pull(k), h, &|_| 0.6).unwrap();
+            let rb = b.advance(&p, pull(k), h, &|_| 0.6).unwrap();
+            assert_eq!(ra.solution.x, rb.solution.x, "step {k}");
+            assert_eq!(ra.solution.evaluation.forces, rb.solution.evaluation.forces);
+            assert_eq!(ra.iterations, rb.iterations);
+            a = ra.muscle;
+            b = rb.muscle;
+        }
+    }
+
+    /// The extrapolation weights: exact for polynomials of the rate of
+    /// degree < the number of increments, with constant and varying steps;
+    /// none across a step-length jump beyond a factor 2.
+    #[test]
+    fn trend_weights_extrapolate_polynomial_rates_exactly() {
+        let inc = |h: f64, dl: f64| Increment {
+            dx: vec![],
+            dl,
+            da: 0.0,
+            h,
+        };
+        // Constant steps: the classic (3, −3, 1).
+        let t = Trend {
+            increments: vec![inc(1e-3, 0.0), inc(1e-3, 0.0), inc(1e-3, 0.0)],
+        };
+        let w = t.weights(1e-3);
+        for (a, b) in w.iter().zip([3.0, -3.0, 1.0]) {
+            assert!((a - b).abs() < 1e-12, "{w:?}");
+        }
+        // Varying steps, a quadratic rate r(t) = 1 + 2t + 3t²: the increment
+        // over [t0, t1] is its integral; the mean rates, taken at the step
+        // midpoints, predict the new step's increment to O(h²) relative.
+        let integral = |a: f64, b: f64| {
+            let f = |t: f64| t + t * t + t * t * t;
+            f(b) - f(a)
+        };
+        let hs = [0.011, 0.009, 0.012]; // most recent first
+        let mut end = 0.0;
+        let mut incs = Vec::new();
+        for &h in &hs {
+            incs.push(inc(h, integral(end - h, end)));
+            end -= h;
+        }
+        let t = Trend { increments: incs };
+        let h = 0.01;
+        let w = t.weights(h);
+        assert_eq!(w.len(), 3);
+        let predicted: f64 = w.iter().zip(&t.increments).map(|(c, i)| c * i.dl).sum();
+        let exact = integral(0.0, h);
+        assert!(
+            (predicted - exact).abs() < 1e-4 * exact,
+            "{predicted} vs {exact}"
+        );
+        // Without the variable-step nodes (constant-step weights) it is off
+        // by far more.
+        let naive = 3.0 * t.increments[0].dl - 3.0 * t.increments[1].dl + t.increments[2].dl;
+        assert!(
+            (naive - exact).abs() > 10.0 * (predicted - exact).abs(),
+            "{naive} vs {predicted} vs {exact}"
+        );
+        // A jump in step length ends the usable history.
+        let t = Trend {
+            increments: vec![inc(1e-3, 0.0), inc(1e-2, 0.0)],
+        };
+        assert_eq!(t.weights(1e-3).len(), 1);
+        assert!(t.weights(1e-1).is_empty());
+    }
+}
