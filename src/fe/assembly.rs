@@ -174,6 +174,19 @@ impl Pattern {
         self.symbolic.row_idx().len()
     }
 
+    /// Number of values the Cholesky factor stores (faer's symbolic
+    /// analysis with the default AMD ordering, as [`Self::factorize`] uses):
+    /// its memory and, twice per triangular solve, its flops.
+    pub fn factor_values(&self) -> usize {
+        faer::sparse::linalg::cholesky::factorize_symbolic_cholesky(
+            self.symbolic_ref(),
+            Side::Lower,
+            faer::sparse::linalg::cholesky::SymmetricOrdering::Amd,
+            Default::default(),
+        )
+        .map_or(0, |s| s.len_val())
+    }
+
     fn symbolic_ref(&self) -> SymbolicSparseColMatRef<'_, usize> {
         self.symbolic.as_ref()
     }

@@ -710,6 +710,8 @@ pub struct Advance {
     pub iterations: usize,
     /// Tangents formed and factorised, summed over the substeps.
     pub factorizations: usize,
+    /// Residual evaluations, summed over the substeps.
+    pub residuals: usize,
     pub substeps: usize,
 }
 
@@ -749,6 +751,7 @@ impl Muscle {
             let mut result = None;
             let mut iterations = 0;
             let mut factorizations = 0;
+            let mut residuals = 0;
             for i in 1..=n {
                 let input = StepInput {
                     x: &x,
@@ -766,6 +769,7 @@ impl Muscle {
                     Ok(s) => {
                         iterations += s.solution.iterations;
                         factorizations += s.solution.factorizations;
+                        residuals += s.solution.residuals;
                         x = s.solution.x.clone();
                         cache = Some(s.cache);
                         result = Some(s.solution);
@@ -792,6 +796,7 @@ impl Muscle {
                     Solution {
                         iterations,
                         factorizations,
+                        residuals,
                         ..s
                     },
                 ));
@@ -826,6 +831,7 @@ impl Muscle {
             let mut l_prev = self.length;
             let mut iterations = 0;
             let mut factorizations = 0;
+            let mut residuals = 0;
             let mut done = None;
             for i in 1..=n {
                 let tau = h * i as f64 / n as f64;
@@ -851,6 +857,7 @@ impl Muscle {
                     }) => {
                         iterations += s.iterations;
                         factorizations += s.factorizations;
+                        residuals += s.residuals;
                         let new_hist: Vec<FibreHistory> =
                             s.evaluation.elements.iter().map(|e| e.history).collect();
                         if let Some((e, err)) =
@@ -905,6 +912,7 @@ impl Muscle {
                     activation,
                     iterations,
                     factorizations,
+                    residuals,
                     substeps: n,
                 });
             }

@@ -219,6 +219,8 @@ pub struct Solution {
     pub evaluation: Evaluation,
     /// Newton corrections (linear solves) taken.
     pub iterations: usize,
+    /// Residual evaluations (without tangent).
+    pub residuals: usize,
     /// Tangents formed and factorised.
     pub factorizations: usize,
 }
@@ -360,6 +362,17 @@ impl Discretization {
             }))
         };
         let mut ev = self.evaluate(p, &x, activation, start, rate, false)?;
+        spent.residuals += 1;
+        // The start histories with the SEE stretch of the latest evaluation:
+        // the CE–SEE solves' warm start (λs of the history enters only as
+        // that; the law reads λm(t)), nearly exact between iterates.
+        let mut warm = start.to_vec();
+        let warm_from = |w: &mut Vec<FibreHistory>, e: &Evaluation| {
+            for (h, el) in w.iter_mut().zip(&e.elements) {
+                h.lambda_s = el.history.lambda_s;
+            }
+        };
+        warm_from(&mut warm, &ev);
         if mode == Mode::Fresh {
             cache = form(&x);
         }
@@ -381,6 +394,7 @@ impl Discretization {
                         x,
                         evaluation: ev,
                         iterations: spent.solves,
+                        residuals: spent.residuals,
                         factorizations: spent.factorizations,
                     },
                     cache,
@@ -412,7 +426,10 @@ impl Discretization {
             let mut alpha = 1.0;
             let accepted = loop {
                 let trial: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
-                if let Ok(e) = self.evaluate(p, &trial, activation, start, rate, false) {
+                let evaluated = self.evaluate(p, &trial, activation, &warm, rate, false);
+                spent.residuals += 1;
+                if let Ok(e) = evaluated {
+                    warm_from(&mut warm, &e);
                     let decreased = match merit {
                         Merit::Residual => {
                             self.residual_norm2(&e.forces) <= (1.0 - 1e-4 * alpha) * r2
@@ -518,6 +535,7 @@ impl Discretization {
         }));
         let t = spent.tangent(&cache, self, p)?;
         let r = self.evaluate(p, input.x, activation, start, rate, false)?;
+        spent.residuals += 1;
         let mut dx = self.free_negated(&r.forces);
         t.factor.solve_in_place(&mut dx);
         spent.solves += 1;
@@ -581,6 +599,7 @@ enum Merit {
 /// What a solve spent.
 #[derive(Clone, Copy, Debug, Default)]
 struct Counts {
+    residuals: usize,
     solves: usize,
     factorizations: usize,
 }
