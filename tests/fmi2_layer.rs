@@ -2652,10 +2652,10 @@ fn instances_move_between_threads_and_run_in_parallel() {
 
 // Defines the `fmi2Xxx` C symbols for `Lag` in this test binary (skipped if
 // the library itself exports an FMU, which would clash).
-#[cfg(not(feature = "export-hill1d"))]
+#[cfg(not(feature = "export-scene"))]
 hill_muscle::export_fmi2!(Lag);
 
-#[cfg(not(feature = "export-hill1d"))]
+#[cfg(not(feature = "export-scene"))]
 #[test]
 fn exported_symbols_work() {
     use __fmi2_exports::*;

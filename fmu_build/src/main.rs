@@ -1,59 +1,211 @@
-//! Builds the muscle FMUs.
+//! Builds the muscle FMUs, one per scene (issue 6).
 //!
 //! ```text
-//! cargo run --release -p fmu_build                       # every FMU into dist/
-//! cargo run --release -p fmu_build -- --fmu HillMuscle1D # one FMU
+//! cargo run --release -p fmu_build                          # every shipped scene into dist/
+//! cargo run --release -p fmu_build -- --scene fmu_build/scenes/passive_1d.toml
+//! cargo run --release -p fmu_build -- --fmu HillMuscle1D    # one shipped scene by its identifier
+//! cargo run --release -p fmu_build -- --check FILE.toml     # check a scene, build nothing
 //! cargo run --release -p fmu_build -- --update-model-descriptions
 //! ```
 //!
-//! For each FMU: the model description and documentation are generated from
-//! the model's variable table (the same table the binary dispatches on), the
-//! cdylib is compiled with `--no-default-features` and exactly that FMU's
-//! export feature (so it carries no other model's code: HillMuscle1D is built
-//! without the `fe` feature, hence without `hill_muscle::fe` and faer;
-//! `export-hfe` turns `fe` on), and `dist/<id>.fmu` is zipped with
-//! `modelDescription.xml`, `binaries/<platform>/<id>.<ext>` and
-//! `documentation/index.html`.
+//! A scene file (TOML, see README "Scenes" and `fmu_build/scenes/`) is parsed
+//! with `toml` + `serde` (unknown keys are errors, with their line) into a
+//! [`hill_muscle::scene::Draft`], which the library checks against the
+//! variant's variable table ([`hill_muscle::scene::Draft::resolve`]): every
+//! problem is reported, naming it, before anything is built.
+//!
+//! For each scene: the model description and documentation are generated
+//! from the scene's variable table (the same table the binary dispatches
+//! on); the scene's `Scene` type is written as Rust to
+//! `target/fmu_build/<id>.rs` and handed to the crate's build script in
+//! `HILL_MUSCLE_SCENE_RS`; the cdylib is compiled with
+//! `--no-default-features --features export-scene` (plus `fe` for FE
+//! scenes), so only hill-muscle recompiles per scene and a 1D binary carries
+//! no FE code; `dist/<id>.fmu` is zipped with `modelDescription.xml`,
+//! `binaries/<platform>/<id>.<ext>` and `documentation/index.html`.
+//!
+//! `--update-model-descriptions` writes `modelDescription/<id>.xml` for
+//! every shipped scene and `src/scene/shipped.rs` (the shipped scenes as
+//! Rust types, used by the library and its tests); tests keep both equal to
+//! this generator's output.
 
+use std::collections::BTreeMap;
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
-use hill_muscle::fmi2::model_description::{documentation_html, model_description};
+use hill_muscle::fmi2::model_description::{documentation_html_for, model_description_for};
+use hill_muscle::fmi2::{ModelInfo, ScalarVariable};
 use hill_muscle::fmus;
+use hill_muscle::scene::{
+    model_type, rust_source, ComponentChoice, Draft, SceneSpec, Value, Variant,
+};
+use serde::Deserialize;
 
-/// One FMU the project ships.
-struct FmuSpec {
-    id: &'static str,
-    /// Cargo feature of the hill-muscle crate that exports this FMU's C API;
-    /// the binary is built with only this feature (and what it implies).
-    feature: &'static str,
-    model_description: fn() -> String,
-    documentation: fn() -> String,
+/// A scene file as written (TOML). Unknown keys are errors.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    model_identifier: String,
+    description: String,
+    variant: VariantName,
+    inputs: Vec<String>,
+    outputs: Vec<String>,
+    #[serde(default)]
+    components: ComponentsFile,
+    #[serde(default)]
+    parameters: BTreeMap<String, toml::Value>,
+    #[serde(default)]
+    constants: BTreeMap<String, toml::Value>,
+    fe: Option<FeFile>,
+    default_experiment: Option<ExperimentFile>,
 }
 
-fn fmus() -> Vec<FmuSpec> {
-    vec![
-        FmuSpec {
-            id: "HillMuscle1D",
-            feature: "export-hill1d",
-            model_description: model_description::<fmus::hill1d::Hill1D>,
-            documentation: || documentation_html::<fmus::hill1d::Hill1D>(fmus::hill1d::LAW_HTML),
+#[derive(Debug, Deserialize, Clone, Copy)]
+enum VariantName {
+    #[serde(rename = "1d")]
+    OneD,
+    #[serde(rename = "fe")]
+    Fe,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ComponentsFile {
+    activation_dynamics: Option<bool>,
+    contractile_element: Option<bool>,
+    fv_shortening: Option<bool>,
+    fv_lengthening: Option<bool>,
+    series_element: Option<bool>,
+    parallel_element: Option<bool>,
+    matrix: Option<bool>,
+    volumetric: Option<bool>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FeFile {
+    mesh: Option<String>,
+    mesh_constant: Option<bool>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ExperimentFile {
+    #[serde(default)]
+    start: f64,
+    stop: f64,
+    step: f64,
+}
+
+/// A TOML value as a parameter value (integers stay integers: the library
+/// accepts them for Real parameters too).
+fn value_of(table: &str, name: &str, v: &toml::Value) -> Result<Value, String> {
+    match v {
+        toml::Value::Float(x) => Ok(Value::Real(*x)),
+        toml::Value::Integer(i) => i32::try_from(*i)
+            .map(Value::Integer)
+            .or_else(|_| Ok(Value::Real(*i as f64))),
+        toml::Value::Boolean(b) => Ok(Value::Boolean(*b)),
+        other => Err(format!(
+            "[{table}] {name} = {other}: must be a number or true/false"
+        )),
+    }
+}
+
+/// Parse and check a scene file's text: the resolved scene, or every
+/// problem, each naming what is wrong.
+fn load_scene(text: &str) -> Result<SceneSpec, Vec<String>> {
+    let file: SceneFile = toml::from_str(text).map_err(|e| vec![e.to_string()])?;
+    let mut errors = Vec::new();
+    let mut values = |table: &str, m: &BTreeMap<String, toml::Value>| -> Vec<(String, Value)> {
+        m.iter()
+            .filter_map(|(k, v)| match value_of(table, k, v) {
+                Ok(v) => Some((k.clone(), v)),
+                Err(e) => {
+                    errors.push(e);
+                    None
+                }
+            })
+            .collect()
+    };
+    let parameters = values("parameters", &file.parameters);
+    let constants = values("constants", &file.constants);
+    let c = &file.components;
+    let draft = Draft {
+        model_identifier: file.model_identifier,
+        description: file.description,
+        variant: Some(match file.variant {
+            VariantName::OneD => Variant::OneD,
+            VariantName::Fe => Variant::Fe,
+        }),
+        components: ComponentChoice {
+            activation_dynamics: c.activation_dynamics,
+            contractile: c.contractile_element,
+            fv_shortening: c.fv_shortening,
+            fv_lengthening: c.fv_lengthening,
+            series: c.series_element,
+            parallel: c.parallel_element,
+            matrix: c.matrix,
+            volumetric: c.volumetric,
         },
-        FmuSpec {
-            id: "HillMuscleFE",
-            feature: "export-hfe",
-            model_description: model_description::<fmus::hillfe::HillFE>,
-            documentation: || {
-                documentation_html::<fmus::hillfe::HillFE>(&format!(
-                    "{}{}",
-                    fmus::hillfe::FE_HTML,
-                    fmus::hill1d::LAW_HTML
-                ))
-            },
-        },
-    ]
+        inputs: file.inputs,
+        outputs: file.outputs,
+        parameters,
+        constants,
+        mesh: file.fe.as_ref().and_then(|f| f.mesh.clone()),
+        mesh_constant: file.fe.as_ref().and_then(|f| f.mesh_constant),
+        default_experiment: file.default_experiment.map(|e| (e.start, e.stop, e.step)),
+    };
+    match draft.resolve() {
+        Ok(spec) if errors.is_empty() => Ok(spec),
+        Ok(_) => Err(errors),
+        Err(mut more) => {
+            errors.append(&mut more);
+            Err(errors)
+        }
+    }
+}
+
+fn read_scene(path: &Path) -> Result<SceneSpec, String> {
+    let text = fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    load_scene(&text).map_err(|errors| {
+        let mut msg = format!("scene {} is invalid:", path.display());
+        for e in errors {
+            msg.push_str("\n  - ");
+            msg.push_str(&e.replace('\n', "\n    "));
+        }
+        msg
+    })
+}
+
+/// modelDescription.xml and documentation/index.html of a table.
+fn describe_table<V: Copy>(
+    info: &ModelInfo,
+    vars: &[ScalarVariable<V>],
+    law_html: &str,
+) -> (String, String) {
+    (
+        model_description_for(info, vars),
+        documentation_html_for(info, vars, law_html),
+    )
+}
+
+/// modelDescription.xml and documentation/index.html of a scene.
+fn describe(spec: &SceneSpec) -> (String, String) {
+    match spec.variant {
+        Variant::OneD => describe_table(
+            &fmus::hill1d::info_for(spec),
+            &spec.variables(fmus::hill1d::all_variables()),
+            fmus::hill1d::LAW_HTML,
+        ),
+        Variant::Fe => describe_table(
+            &fmus::hillfe::info_for(spec),
+            &spec.variables(fmus::hillfe::all_variables()),
+            &format!("{}{}", fmus::hillfe::FE_HTML, fmus::hill1d::LAW_HTML),
+        ),
+    }
 }
 
 fn workspace_root() -> PathBuf {
@@ -61,6 +213,41 @@ fn workspace_root() -> PathBuf {
         .parent()
         .expect("fmu_build sits in the workspace")
         .to_path_buf()
+}
+
+fn target_dir(root: &Path) -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root.join("target"))
+}
+
+/// The shipped scenes: `fmu_build/scenes/*.toml`, sorted by file name.
+fn shipped_scene_files(root: &Path) -> Result<Vec<PathBuf>, String> {
+    let dir = root.join("fmu_build").join("scenes");
+    let mut files: Vec<PathBuf> = fs::read_dir(&dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    Ok(files)
+}
+
+/// The text of `src/scene/shipped.rs` for the shipped scenes.
+fn shipped_source(scenes: &[(PathBuf, SceneSpec)], root: &Path) -> String {
+    let mut s = String::from(
+        "//! The shipped scenes, one `Scene` type each (named by its model identifier).\n\
+         //!\n\
+         //! Generated by `cargo run -p fmu_build -- --update-model-descriptions` from\n\
+         //! `fmu_build/scenes/*.toml`; do not edit (a test keeps it equal to the\n\
+         //! generator's output).\n",
+    );
+    for (path, spec) in scenes {
+        let rel = path.strip_prefix(root).unwrap_or(path);
+        s.push_str(&format!("\n// From {}.\n", rel.display()));
+        s.push_str(&rust_source(spec.model_identifier, spec));
+    }
+    s
 }
 
 /// FMI platform folder and shared-library extension of this host.
@@ -74,10 +261,28 @@ fn platform() -> (&'static str, &'static str, &'static str) {
     }
 }
 
-fn build_library(spec: &FmuSpec, root: &Path) -> Result<PathBuf, String> {
+fn build_library(spec: &SceneSpec, root: &Path) -> Result<PathBuf, String> {
+    let target = target_dir(root);
+    let gen_dir = target.join("fmu_build");
+    fs::create_dir_all(&gen_dir).map_err(|e| format!("{}: {e}", gen_dir.display()))?;
+    let gen = gen_dir.join(format!("{}.rs", spec.model_identifier));
+    let text = format!(
+        "// Generated by fmu_build: the scene this binary exports.\n{}\ncrate::export_fmi2!({});\n",
+        rust_source("ExportedScene", spec),
+        model_type("ExportedScene", spec)
+    );
+    // Rewritten only when it changes, so an unchanged scene is not rebuilt.
+    if fs::read_to_string(&gen).ok().as_deref() != Some(text.as_str()) {
+        fs::write(&gen, &text).map_err(|e| format!("{}: {e}", gen.display()))?;
+    }
+    let features = match spec.variant {
+        Variant::OneD => "export-scene",
+        Variant::Fe => "export-scene,fe",
+    };
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(root)
+        .env("HILL_MUSCLE_SCENE_RS", &gen)
         .args([
             "build",
             "--release",
@@ -86,16 +291,13 @@ fn build_library(spec: &FmuSpec, root: &Path) -> Result<PathBuf, String> {
             "--lib",
             "--no-default-features",
             "--features",
-            spec.feature,
+            features,
         ])
         .status()
         .map_err(|e| format!("cannot run cargo: {e}"))?;
     if !status.success() {
-        return Err(format!("cargo build of {} failed", spec.id));
+        return Err(format!("cargo build of {} failed", spec.model_identifier));
     }
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("target"));
     let (_, prefix, ext) = platform();
     let lib = target
         .join("release")
@@ -107,26 +309,22 @@ fn build_library(spec: &FmuSpec, root: &Path) -> Result<PathBuf, String> {
     }
 }
 
-fn write_fmu(spec: &FmuSpec, lib: &Path, out_dir: &Path) -> Result<PathBuf, String> {
+fn write_fmu(spec: &SceneSpec, lib: &Path, out_dir: &Path) -> Result<PathBuf, String> {
     use zip::write::SimpleFileOptions;
+    let id = spec.model_identifier;
     fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
-    let path = out_dir.join(format!("{}.fmu", spec.id));
-    let tmp = out_dir.join(format!(".{}.fmu.tmp", spec.id));
+    let path = out_dir.join(format!("{id}.fmu"));
+    let tmp = out_dir.join(format!(".{id}.fmu.tmp"));
     let file = fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
     let mut zip = zip::ZipWriter::new(file);
     let opts = SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
     let (plat, _, ext) = platform();
     let binary = fs::read(lib).map_err(|e| format!("{}: {e}", lib.display()))?;
+    let (xml, html) = describe(spec);
     let entries: [(String, Vec<u8>); 3] = [
-        (
-            "modelDescription.xml".into(),
-            (spec.model_description)().into_bytes(),
-        ),
-        (format!("binaries/{plat}/{}.{ext}", spec.id), binary),
-        (
-            "documentation/index.html".into(),
-            (spec.documentation)().into_bytes(),
-        ),
+        ("modelDescription.xml".into(), xml.into_bytes()),
+        (format!("binaries/{plat}/{id}.{ext}"), binary),
+        ("documentation/index.html".into(), html.into_bytes()),
     ];
     for (name, bytes) in entries {
         zip.start_file(name.as_str(), opts)
@@ -139,49 +337,101 @@ fn write_fmu(spec: &FmuSpec, lib: &Path, out_dir: &Path) -> Result<PathBuf, Stri
     Ok(path)
 }
 
+const USAGE: &str = "usage: fmu_build [--scene FILE.toml]... [--fmu ID]... [--check FILE.toml]... \
+[--out DIR] [--update-model-descriptions]\n\
+  (no --scene/--fmu: every shipped scene of fmu_build/scenes/)";
+
 fn run() -> Result<(), String> {
     let mut args = std::env::args().skip(1);
-    let mut only: Option<String> = None;
+    let mut scenes: Vec<PathBuf> = Vec::new();
+    let mut ids: Vec<String> = Vec::new();
+    let mut checks: Vec<PathBuf> = Vec::new();
     let mut out_dir: Option<PathBuf> = None;
     let mut update_md = false;
     while let Some(a) = args.next() {
         match a.as_str() {
-            "--fmu" => only = Some(args.next().ok_or("--fmu needs a model identifier")?),
+            "--scene" => scenes.push(args.next().ok_or("--scene needs a file")?.into()),
+            "--fmu" => ids.push(args.next().ok_or("--fmu needs a model identifier")?),
+            "--check" => checks.push(args.next().ok_or("--check needs a file")?.into()),
             "--out" => out_dir = Some(args.next().ok_or("--out needs a directory")?.into()),
             "--update-model-descriptions" => update_md = true,
             "-h" | "--help" => {
-                println!("usage: fmu_build [--fmu ID] [--out DIR] [--update-model-descriptions]");
+                println!("{USAGE}");
                 return Ok(());
             }
-            other => return Err(format!("unknown argument {other:?} (see --help)")),
+            other => return Err(format!("unknown argument {other:?}\n{USAGE}")),
         }
     }
     let root = workspace_root();
-    let specs: Vec<FmuSpec> = fmus()
-        .into_iter()
-        .filter(|s| only.as_deref().is_none_or(|id| id == s.id))
-        .collect();
-    if specs.is_empty() {
-        let known: Vec<&str> = fmus().iter().map(|s| s.id).collect();
-        return Err(format!(
-            "unknown FMU {:?}; known: {}",
-            only.unwrap_or_default(),
-            known.join(", ")
-        ));
-    }
-    if update_md {
-        for spec in &specs {
-            let path = root
-                .join("modelDescription")
-                .join(format!("{}.xml", spec.id));
-            fs::write(&path, (spec.model_description)())
-                .map_err(|e| format!("{}: {e}", path.display()))?;
-            println!("wrote {}", path.display());
+    if !checks.is_empty() {
+        for path in &checks {
+            let spec = read_scene(path)?;
+            println!(
+                "{}: scene {} ({} variant) is valid: {} variables",
+                path.display(),
+                spec.model_identifier,
+                spec.variant.name(),
+                match spec.variant {
+                    Variant::OneD => spec.variables(fmus::hill1d::all_variables()).len(),
+                    Variant::Fe => spec.variables(fmus::hillfe::all_variables()).len(),
+                }
+            );
         }
         return Ok(());
     }
+    let mut shipped = Vec::new();
+    for path in shipped_scene_files(&root)? {
+        let spec = read_scene(&path)?;
+        shipped.push((path, spec));
+    }
+    for (i, (p, s)) in shipped.iter().enumerate() {
+        if let Some((q, _)) = shipped[..i]
+            .iter()
+            .find(|(_, t)| t.model_identifier == s.model_identifier)
+        {
+            return Err(format!(
+                "{} and {} both define model_identifier {}",
+                q.display(),
+                p.display(),
+                s.model_identifier
+            ));
+        }
+    }
+    if update_md {
+        for (_, spec) in &shipped {
+            let path = root
+                .join("modelDescription")
+                .join(format!("{}.xml", spec.model_identifier));
+            fs::write(&path, describe(spec).0).map_err(|e| format!("{}: {e}", path.display()))?;
+            println!("wrote {}", path.display());
+        }
+        let path = root.join("src").join("scene").join("shipped.rs");
+        fs::write(&path, shipped_source(&shipped, &root))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+        return Ok(());
+    }
+    let mut selected: Vec<SceneSpec> = Vec::new();
+    for path in &scenes {
+        selected.push(read_scene(path)?);
+    }
+    for id in &ids {
+        match shipped.iter().find(|(_, s)| s.model_identifier == id) {
+            Some((_, s)) => selected.push(*s),
+            None => {
+                let known: Vec<&str> = shipped.iter().map(|(_, s)| s.model_identifier).collect();
+                return Err(format!(
+                    "unknown FMU {id:?}; shipped scenes: {}",
+                    known.join(", ")
+                ));
+            }
+        }
+    }
+    if scenes.is_empty() && ids.is_empty() {
+        selected = shipped.iter().map(|(_, s)| *s).collect();
+    }
     let out_dir = out_dir.unwrap_or_else(|| root.join("dist"));
-    for spec in &specs {
+    for spec in &selected {
         let lib = build_library(spec, &root)?;
         let fmu = write_fmu(spec, &lib, &out_dir)?;
         println!("wrote {}", fmu.display());
@@ -198,3 +448,6 @@ fn main() -> ExitCode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

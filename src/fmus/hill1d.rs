@@ -31,11 +31,16 @@ use crate::fmi2::{
 };
 use crate::law::activation::{activation_step, Decay};
 use crate::law::force_length::force_length;
+use crate::law::force_velocity::branch_included;
 use crate::law::hill_fibre::ce_stretch;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
 use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, evaluable_stretch_range, Sensitivity};
-use crate::law::{solve_uniaxial, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS};
+use crate::law::{
+    solve_uniaxial_with, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS,
+};
+use crate::scene::{LawOf, Scene, Value};
+use std::marker::PhantomData;
 
 /// Rest length of the paper's specimen [m].
 pub const DEFAULT_L0: f64 = 0.05;
@@ -72,6 +77,9 @@ pub enum Output {
     SeeStretch,
     ActiveStress,
     PassiveStress,
+    /// d force / d length of the step map (scenes only: not in the full
+    /// `HillMuscle1D`, whose masters call fmi2GetDirectionalDerivative).
+    Stiffness,
 }
 
 const OUTPUTS: [(Output, &str, &str, Option<&str>); 9] = [
@@ -261,9 +269,16 @@ struct Stepped {
     stats: StepStatistics,
 }
 
-/// The 1D Hill muscle FMU model.
+/// The full `HillMuscle1D`: every component, input and output of the 1D
+/// model (the scene `fmu_build/scenes/hill_muscle_1d.toml`).
+pub type Hill1D = Hill1DModel<crate::scene::shipped::HillMuscle1D>;
+
+/// The 1D Hill muscle FMU model of scene `S` ([`crate::scene`]): the
+/// scene's components are compile-time constants here and in the law
+/// ([`LawOf`]), so an absent component's code is not in its binary.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Hill1D {
+pub struct Hill1DModel<S: Scene> {
+    scene: PhantomData<S>,
     params: Params,
     l0: f64,
     area: f64,
@@ -377,7 +392,24 @@ impl Jacobian {
             Output::SeeStretch => s.lambda_s,
             Output::ActiveStress => dsee,
             Output::PassiveStress => dnom - dsee,
+            // A second derivative: not provided (partial_derivative refuses).
+            Output::Stiffness => f64::NAN,
         }
+    }
+
+    /// Whether every value of [`Jacobian::to_values`] is finite (without
+    /// collecting them: this runs every step).
+    fn all_finite(&self) -> bool {
+        self.sens.iter().all(|s| {
+            [s.q, s.j, s.mu, s.tau11, s.lambda_f, s.lambda_s]
+                .iter()
+                .all(|x| x.is_finite())
+        }) && self
+            .dnominal
+            .iter()
+            .chain(&self.dlevel)
+            .chain(&[self.tau11, self.j, self.dsigma_see])
+            .all(|x| x.is_finite())
     }
 
     fn to_values(self) -> Vec<f64> {
@@ -478,7 +510,12 @@ impl Predictor {
     }
 }
 
-impl Hill1D {
+impl<S: Scene> Hill1DModel<S> {
+    /// Whether the scene has the contractile (and series) element.
+    const CE: bool = S::SPEC.components.contractile;
+    /// Whether the scene has the activation input (then also the CE).
+    const ACTIVATION: bool = S::SPEC.inputs.activation;
+
     /// Outputs and the data of their partials (the Jacobian) from a solved
     /// uniaxial state; `sens` are its total sensitivities with respect to the
     /// inputs (activation, length) and `da_du` is ∂a/∂u of the step map.
@@ -514,6 +551,9 @@ impl Hill1D {
         // stretch at the end of the step is L/L0) and dλ/du = 0.
         let dlambda = [0.0, 1.0 / self.l0];
         for c in [IN_ACTIVATION, IN_LENGTH] {
+            if c == IN_ACTIVATION && !Self::ACTIVATION {
+                continue; // no activation input: no such partial
+            }
             jacobian.dnominal[c] =
                 sens[c].tau11 / u.lambda - u.tau11 * dlambda[c] / (u.lambda * u.lambda);
         }
@@ -562,7 +602,12 @@ impl Hill1D {
     /// for the command held (or linear) over the step, or without dynamics the
     /// command itself (clamped into [0, 1]). `decay` is e^(−S tau).
     fn level(&self, tau: f64, decay: f64) -> (f64, f64) {
-        if self.activation_dynamics {
+        if !Self::CE {
+            // No contractile element: no activation (the command is 0 and
+            // nothing reads the level).
+            return (0.0, 0.0);
+        }
+        if S::SPEC.components.activation_dynamics && self.activation_dynamics {
             activation_step(
                 self.activation_level,
                 self.command,
@@ -663,11 +708,23 @@ impl Hill1D {
                 lambda_s: ls_guess.max(1.0),
                 lambda_m: hist.lambda_m,
             };
-            let u = solve_uniaxial(p, lam_j, a_j, &start, FibreRate::Step { h: hs_j }, q_guess)
-                .map_err(|e| StepError::Discard(self.unsolvable(lam_j * self.l0, &e.0)))?;
+            let u = solve_uniaxial_with::<LawOf<S>>(
+                p,
+                lam_j,
+                a_j,
+                &start,
+                FibreRate::Step { h: hs_j },
+                q_guess,
+            )
+            .map_err(|e| StepError::Discard(self.unsolvable(lam_j * self.l0, &e.0)))?;
             stats.lateral_iterations = stats.lateral_iterations.saturating_add(u.iterations);
             stats.ce_iterations = stats.ce_iterations.saturating_add(u.ce_iterations);
-            let err = piece_error(p, (rate, a), &u, a_j, dl / hs_j, hs_j);
+            // Without the CE the step map has no history: one piece, exact.
+            let err = if Self::CE {
+                piece_error(p, (rate, a), &u, a_j, dl / hs_j, hs_j)
+            } else {
+                0.0
+            };
             // A piece of h/2^FINEST is taken whatever its estimate (an event
             // faster than that, like a SEE snapping slack, is not resolved by
             // shorter pieces), and so is one that cannot be halved in binary64
@@ -693,9 +750,13 @@ impl Hill1D {
             // Chain rule through the piece: its state depends on the inputs
             // through its stretch (d λ_j/dL = frac/L0), its level (∂a_j/∂u)
             // and the history's CE stretch (`chain`).
+            self.check_fv_branch(&u)?;
             let drivers = [[da_du_j, 0.0], [0.0, frac / self.l0]];
             let mut sens = [Sensitivity::default(); 2];
             for c in [IN_ACTIVATION, IN_LENGTH] {
+                if c == IN_ACTIVATION && !Self::ACTIVATION {
+                    continue; // the scene has no activation input
+                }
                 sens[c] = combine(&[
                     (&u.d_dactivation, drivers[c][0]),
                     (&u.d_dlambda, drivers[c][1]),
@@ -741,6 +802,38 @@ impl Hill1D {
             prev = Some(([q0, ls0], [u.q, u.fibre.history.lambda_s], hs_j));
         }
     }
+    /// A scene without one of the f_v branches (eq 12) computes f_v = 1 on
+    /// it ([`crate::law::force_velocity::force_velocity_with`]); a step whose
+    /// CE–SEE root lies on the absent branch — the CE carrying force while
+    /// moving faster than 1e-9 |lambda_dot_min| in that direction, where
+    /// f_v would differ from 1 by more than ~1e-9 — is not what the scene
+    /// can compute: it is discarded with a message naming the branch. (Below
+    /// that rate the round-off of an isometric hold stays inside.)
+    fn check_fv_branch(&self, u: &Uniaxial) -> Result<(), StepError> {
+        let c = S::SPEC.components;
+        if !Self::CE || (c.fv_shortening && c.fv_lengthening) {
+            return Ok(());
+        }
+        let rate = u.fibre.lambda_dot_m;
+        let p = &self.params;
+        if u.fibre.sigma_see > 0.0
+            && !branch_included::<LawOf<S>>(rate)
+            && rate.abs() > 1e-9 * p.lambda_dot_min.abs()
+        {
+            let (branch, key) = if rate > 0.0 {
+                ("lengthening", "fv_lengthening")
+            } else {
+                ("shortening", "fv_shortening")
+            };
+            return Err(StepError::Discard(format!(
+                "the contractile element is {branch} (CE stretch rate {rate:e} 1/s) while carrying                  {:e} Pa, but scene {} has no {branch} branch of the force-velocity relation                  (components.{key} = false): use a scene with it",
+                u.fibre.sigma_see,
+                S::SPEC.model_identifier
+            )));
+        }
+        Ok(())
+    }
+
     /// Solver counts of the last completed step (or of the initialization).
     pub fn last_step_statistics(&self) -> StepStatistics {
         self.statistics.0
@@ -787,167 +880,29 @@ impl Hill1D {
     }
 }
 
-impl Model for Hill1D {
+impl<S: Scene> Model for Hill1DModel<S> {
     type Var = Var;
 
+    /// The scene's identifier, description and DefaultExperiment; the unit
+    /// N/m only when the scene exposes `stiffness` (so the full FMU's
+    /// interface, and its GUID, are unchanged).
     fn info() -> ModelInfo {
-        ModelInfo {
-            model_identifier: "HillMuscle1D",
-            description:
-                "Hill-type hyperelastic skeletal muscle (Lu et al. 2011), 1D uniaxial reduction",
-            version: env!("CARGO_PKG_VERSION"),
-            units: units(),
-            default_experiment: (0.0, 2.5, 1e-3),
-            max_input_derivative_order: 1,
-            direct_feedthrough: false,
-        }
+        info_for(&S::SPEC)
     }
-
-    /// Parameters (law, then geometry and activation options), inputs, outputs.
+    /// The scene's variables: [`all_variables`] restricted to what the scene
+    /// exposes ([`crate::scene::SceneSpec::variables`]).
     fn variables() -> Vec<ScalarVariable<Var>> {
-        let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
-            .iter()
-            .map(|info| {
-                parameter(
-                    info.name,
-                    info.description,
-                    real(
-                        info.unit,
-                        Some(info.default),
-                        Some(info.range.min),
-                        Some(info.range.max),
-                    ),
-                    Var::Param(info.id),
-                )
-            })
-            .collect();
-        v.push(parameter(
-            "L0",
-            "Rest length of the muscle",
-            real(
-                "m",
-                Some(DEFAULT_L0),
-                Some(L0_RANGE.min),
-                Some(L0_RANGE.max),
-            ),
-            Var::L0,
-        ));
-        v.push(parameter(
-            "area",
-            "Reference cross-section area (default: the mean cross-section V0/L0 of the paper's fusiform specimen)",
-            real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
-            Var::Area,
-        ));
-        v.push(parameter(
-            "activation_dynamics",
-            "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
-            VarType::Boolean { start: Some(true) },
-            Var::ActivationDynamics,
-        ));
-        v.push(parameter(
-            "initial_activation",
-            "Activation level at the start time",
-            real("1", Some(0.0), Some(0.0), Some(1.0)),
-            Var::InitialActivation,
-        ));
-        v.push(parameter(
-            "adaptive_substeps",
-            "Cut a step into substeps where the error estimate of the CE-SEE update exceeds substep_tolerance; false: one backward-Euler step per communication step (first order in h)",
-            VarType::Boolean { start: Some(true) },
-            Var::AdaptiveSubsteps,
-        ));
-        v.push(parameter(
-            "substep_tolerance",
-            "Tolerance of the estimated local error of the SEE stress per substep, as a fraction of sigma0",
-            real(
-                "1",
-                Some(SUBSTEP_RTOL),
-                Some(SUBSTEP_TOLERANCE_RANGE.min),
-                Some(SUBSTEP_TOLERANCE_RANGE.max),
-            ),
-            Var::SubstepTolerance,
-        ));
-        let input = |name, description, ty, id| ScalarVariable {
-            name,
-            description,
-            causality: Causality::Input,
-            variability: Variability::Continuous,
-            initial: None,
-            ty,
-            depends_on: vec![],
-            id,
-        };
-        v.push(input(
-            "activation",
-            "Activation command u in [0, 1] (values outside are clamped with a warning)",
-            real("1", Some(0.0), Some(0.0), Some(1.0)),
-            Var::Activation,
-        ));
-        v.push(input(
-            "length",
-            "Muscle length reached at the end of the step",
-            real(
-                "m",
-                Some(DEFAULT_L0),
-                Some(L0_RANGE.min),
-                Some(L0_RANGE.max),
-            ),
-            Var::Length,
-        ));
-        // Dependencies at initialization (the isometric equilibrium, f_v = 1:
-        // S, kc, ke, d and lambda_dot_min play no part). The activation level
-        // is initial_activation, or the command without dynamics; everything
-        // else also depends on the length, L0 and the static law; only the
-        // force depends on the area. Outputs have no direct feedthrough
-        // (`ModelInfo::direct_feedthrough`).
-        let activation_deps = ["activation", "activation_dynamics", "initial_activation"];
-        let static_law = [
-            ParamId::B,
-            ParamId::C,
-            ParamId::Alpha,
-            ParamId::Beta,
-            ParamId::A,
-            ParamId::Sigma0,
-            ParamId::LambdaOpt,
-            ParamId::Dcomp,
-            ParamId::K,
-        ];
-        let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
-        state_deps.extend(["length", "L0"]);
-        state_deps.extend(static_law.map(|id| Params::info(id).name));
-        let deps = |out: Output| -> Vec<&'static str> {
-            match out {
-                Output::ActivationLevel => activation_deps.to_vec(),
-                Output::Force => [state_deps.as_slice(), &["area"]].concat(),
-                _ => state_deps.clone(),
-            }
-        };
-        for (out, name, description, unit) in OUTPUTS {
-            v.push(ScalarVariable {
-                name,
-                description,
-                causality: Causality::Output,
-                variability: Variability::Continuous,
-                initial: Some(Initial::Calculated),
-                ty: VarType::Real {
-                    unit,
-                    start: None,
-                    min: None,
-                    max: None,
-                },
-                depends_on: deps(out),
-                id: Var::Out(out),
-            });
-        }
-        v
+        S::SPEC.variables(all_variables())
     }
 
     fn new() -> Self {
-        let mut m = Hill1D {
+        let mut m = Hill1DModel {
+            scene: PhantomData,
             params: Params::default(),
             l0: DEFAULT_L0,
             area: DEFAULT_AREA,
-            activation_dynamics: true,
+            // Without the component: a = u (its switch compiled in as false).
+            activation_dynamics: S::SPEC.components.activation_dynamics,
             initial_activation: 0.0,
             adaptive_substeps: true,
             substep_tolerance: SUBSTEP_RTOL,
@@ -968,7 +923,20 @@ impl Model for Hill1D {
             statistics: Diagnostics::default(),
         };
         // Outputs at the start values are those of the initial equilibrium.
-        m.initialize().expect("the default start values are valid");
+        // The scene's start values and constants (checked when the scene was
+        // resolved; the setters check them again).
+        let all = all_variables();
+        crate::scene::apply_settings(&S::SPEC, &all, |var, value| {
+            match value {
+                Value::Real(x) => m.set_real(var, x),
+                Value::Integer(i) => m.set_integer(var, i),
+                Value::Boolean(b) => m.set_boolean(var, b),
+            }
+            .map(|_| ())
+            .map_err(|e| e.0)
+        })
+        .expect("the scene's settings are valid");
+        m.initialize().expect("the scene's start values are valid");
         m
     }
 
@@ -980,6 +948,12 @@ impl Model for Hill1D {
             Var::InitialActivation => self.initial_activation,
             Var::Activation => self.command,
             Var::Length => self.length(),
+            // d force / d length of the last step map: the same number as
+            // fmi2GetDirectionalDerivative(force, length).
+            Var::Out(Output::Stiffness) => {
+                self.jacobian
+                    .partial(Output::Force, IN_LENGTH, self.params.k, self.area)
+            }
             Var::Out(o) => self.outputs[o as usize],
             Var::SubstepTolerance => self.substep_tolerance,
             Var::ActivationDynamics | Var::AdaptiveSubsteps => f64::NAN,
@@ -1098,7 +1072,7 @@ impl Model for Hill1D {
         if !(self.stretch_range.0..=self.stretch_range.1).contains(&lambda) {
             return Err(ModelError(self.unsolvable(length, "not attempted")));
         }
-        let u = solve_uniaxial(
+        let u = solve_uniaxial_with::<LawOf<S>>(
             &self.params,
             lambda,
             a,
@@ -1159,7 +1133,7 @@ impl Model for Hill1D {
                 "non-finite output at stretch {lambda}"
             )));
         }
-        if jacobian.to_values().iter().any(|x| !x.is_finite()) {
+        if !jacobian.all_finite() {
             return Err(StepError::Discard(format!(
                 "non-finite partial derivative at stretch {lambda} with h = {h:e} s \
                  (a step this short cannot be resolved)"
@@ -1185,6 +1159,9 @@ impl Model for Hill1D {
             }
         };
         match unknown {
+            Var::Out(Output::Stiffness) => Err(ModelError(
+                "stiffness is itself d force / d length: its derivatives are not provided".into(),
+            )),
             Var::Out(o) => Ok(self.jacobian.partial(o, column, self.params.k, self.area)),
             _ => Err(ModelError(
                 "directional derivatives are provided for the outputs".into(),
@@ -1227,7 +1204,7 @@ impl Model for Hill1D {
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
         let bad = |e: String| ModelError(format!("HillMuscle1D state: {e}"));
         let mut r = ByteReader::new(input);
-        let mut m = Hill1D::new();
+        let mut m = Self::new();
         let params = r.f64s()?;
         if params.len() != PARAMETERS.len() {
             return Err(bad(format!(
@@ -1319,6 +1296,187 @@ impl Model for Hill1D {
         m.stretch_range = evaluable_stretch_range(&m.params);
         Ok(m)
     }
+}
+
+/// The [`ModelInfo`] of the 1D model of scene `spec`: its identifier,
+/// description and DefaultExperiment; the unit N/m only when the scene
+/// exposes `stiffness` (so the full FMU's interface, and GUID, are unchanged).
+pub fn info_for(spec: &crate::scene::SceneSpec) -> ModelInfo {
+    let mut units = units();
+    if spec.outputs.contains(&"stiffness") {
+        units.push(crate::fmi2::Unit {
+            name: "N/m",
+            kg: 1,
+            m: 0,
+            s: -2,
+        });
+    }
+    ModelInfo {
+        model_identifier: spec.model_identifier,
+        description: spec.description,
+        version: env!("CARGO_PKG_VERSION"),
+        units,
+        default_experiment: spec.default_experiment,
+        max_input_derivative_order: 1,
+        direct_feedthrough: false,
+    }
+}
+
+/// Every variable the 1D model can expose, in table order: the law's
+/// parameters, geometry and activation options, the inputs, the outputs
+/// (`stiffness` last). The full `HillMuscle1D` exposes all but `stiffness`;
+/// a scene exposes a subset ([`crate::scene::SceneSpec::variables`]).
+pub fn all_variables() -> Vec<ScalarVariable<Var>> {
+    let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
+        .iter()
+        .map(|info| {
+            parameter(
+                info.name,
+                info.description,
+                real(
+                    info.unit,
+                    Some(info.default),
+                    Some(info.range.min),
+                    Some(info.range.max),
+                ),
+                Var::Param(info.id),
+            )
+        })
+        .collect();
+    v.push(parameter(
+        "L0",
+        "Rest length of the muscle",
+        real(
+            "m",
+            Some(DEFAULT_L0),
+            Some(L0_RANGE.min),
+            Some(L0_RANGE.max),
+        ),
+        Var::L0,
+    ));
+    v.push(parameter(
+        "area",
+        "Reference cross-section area (default: the mean cross-section V0/L0 of the paper's fusiform specimen)",
+        real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
+        Var::Area,
+    ));
+    v.push(parameter(
+        "activation_dynamics",
+        "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
+        VarType::Boolean { start: Some(true) },
+        Var::ActivationDynamics,
+    ));
+    v.push(parameter(
+        "initial_activation",
+        "Activation level at the start time",
+        real("1", Some(0.0), Some(0.0), Some(1.0)),
+        Var::InitialActivation,
+    ));
+    v.push(parameter(
+        "adaptive_substeps",
+        "Cut a step into substeps where the error estimate of the CE-SEE update exceeds substep_tolerance; false: one backward-Euler step per communication step (first order in h)",
+        VarType::Boolean { start: Some(true) },
+        Var::AdaptiveSubsteps,
+    ));
+    v.push(parameter(
+        "substep_tolerance",
+        "Tolerance of the estimated local error of the SEE stress per substep, as a fraction of sigma0",
+        real(
+            "1",
+            Some(SUBSTEP_RTOL),
+            Some(SUBSTEP_TOLERANCE_RANGE.min),
+            Some(SUBSTEP_TOLERANCE_RANGE.max),
+        ),
+        Var::SubstepTolerance,
+    ));
+    let input = |name, description, ty, id| ScalarVariable {
+        name,
+        description,
+        causality: Causality::Input,
+        variability: Variability::Continuous,
+        initial: None,
+        ty,
+        depends_on: vec![],
+        id,
+    };
+    v.push(input(
+        "activation",
+        "Activation command u in [0, 1] (values outside are clamped with a warning)",
+        real("1", Some(0.0), Some(0.0), Some(1.0)),
+        Var::Activation,
+    ));
+    v.push(input(
+        "length",
+        "Muscle length reached at the end of the step",
+        real(
+            "m",
+            Some(DEFAULT_L0),
+            Some(L0_RANGE.min),
+            Some(L0_RANGE.max),
+        ),
+        Var::Length,
+    ));
+    // Dependencies at initialization (the isometric equilibrium, f_v = 1:
+    // S, kc, ke, d and lambda_dot_min play no part). The activation level
+    // is initial_activation, or the command without dynamics; everything
+    // else also depends on the length, L0 and the static law; only the
+    // force depends on the area. Outputs have no direct feedthrough
+    // (`ModelInfo::direct_feedthrough`).
+    let activation_deps = ["activation", "activation_dynamics", "initial_activation"];
+    let static_law = [
+        ParamId::B,
+        ParamId::C,
+        ParamId::Alpha,
+        ParamId::Beta,
+        ParamId::A,
+        ParamId::Sigma0,
+        ParamId::LambdaOpt,
+        ParamId::Dcomp,
+        ParamId::K,
+    ];
+    let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
+    state_deps.extend(["length", "L0"]);
+    state_deps.extend(static_law.map(|id| Params::info(id).name));
+    let deps = |out: Output| -> Vec<&'static str> {
+        match out {
+            Output::ActivationLevel => activation_deps.to_vec(),
+            Output::Force => [state_deps.as_slice(), &["area"]].concat(),
+            _ => state_deps.clone(),
+        }
+    };
+    for (out, name, description, unit) in OUTPUTS {
+        v.push(ScalarVariable {
+            name,
+            description,
+            causality: Causality::Output,
+            variability: Variability::Continuous,
+            initial: Some(Initial::Calculated),
+            ty: VarType::Real {
+                unit,
+                start: None,
+                min: None,
+                max: None,
+            },
+            depends_on: deps(out),
+            id: Var::Out(out),
+        });
+    }
+    v.push(ScalarVariable {
+        name: "stiffness",
+        description: "Stiffness d force / d length of the step map that produced the current outputs (the tangent of the last step, fibre history fixed; for masters that cannot call fmi2GetDirectionalDerivative)",
+        causality: Causality::Output,
+        variability: Variability::Continuous,
+        initial: Some(Initial::Calculated),
+        ty: VarType::Real {
+            unit: Some("N/m"),
+            start: None,
+            min: None,
+            max: None,
+        },
+        depends_on: deps(Output::Force),
+        id: Var::Out(Output::Stiffness),
+    });
+    v
 }
 
 /// The law and the conventions, for the FMU's `documentation/index.html`.

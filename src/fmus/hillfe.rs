@@ -45,6 +45,8 @@ use crate::law::activation::{activation_step, Decay};
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{FibreHistory, FibreRate, ParamId, Params, PARAMETERS};
+use crate::scene::{Scene, Value};
+use std::marker::PhantomData;
 
 /// Default rest length: the paper's specimen.
 pub const DEFAULT_L0: f64 = crate::specimen::LENGTH;
@@ -208,9 +210,17 @@ impl LastStep {
     }
 }
 
-/// The FE muscle FMU model.
+/// The full `HillMuscleFE` (the scene `fmu_build/scenes/hill_muscle_fe.toml`).
+pub type HillFE = HillFEModel<crate::scene::shipped::HillMuscleFE>;
+
+/// The FE muscle FMU model of scene `S` ([`crate::scene`]). A scene changes
+/// only the interface: which inputs, outputs and parameters are exposed,
+/// the start values and constants, the mesh. The solver (`crate::fe`)
+/// always evaluates the complete law; a scene without the contractile
+/// element runs it at activation 0, where the CE carries nothing.
 #[derive(Clone, Debug)]
-pub struct HillFE {
+pub struct HillFEModel<S: Scene> {
+    scene: PhantomData<S>,
     params: Params,
     l0: f64,
     area: f64,
@@ -235,7 +245,7 @@ pub struct HillFE {
     derivatives: OnceLock<Result<(f64, f64), String>>,
 }
 
-impl HillFE {
+impl<S: Scene> HillFEModel<S> {
     fn length(&self) -> f64 {
         self.length.unwrap_or(self.l0)
     }
@@ -369,190 +379,27 @@ impl HillFE {
     }
 }
 
-impl Model for HillFE {
+impl<S: Scene> Model for HillFEModel<S> {
     type Var = Var;
 
     fn info() -> ModelInfo {
-        ModelInfo {
-            model_identifier: "HillMuscleFE",
-            description: "Hill-type hyperelastic skeletal muscle (Lu et al. 2011), lumped 3D finite-element fusiform muscle",
-            version: env!("CARGO_PKG_VERSION"),
-            units: units(),
-            default_experiment: (0.0, 2.5, 1e-2),
-            max_input_derivative_order: 1,
-            direct_feedthrough: false,
-        }
+        info_for(&S::SPEC)
     }
 
+    /// The scene's variables: [`all_variables`] restricted to what the scene
+    /// exposes ([`crate::scene::SceneSpec::variables`]).
     fn variables() -> Vec<ScalarVariable<Var>> {
-        let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
-            .iter()
-            .map(|info| {
-                parameter(
-                    info.name,
-                    info.description,
-                    real(
-                        info.unit,
-                        Some(info.default),
-                        Some(info.range.min),
-                        Some(info.range.max),
-                    ),
-                    Var::Param(info.id),
-                )
-            })
-            .collect();
-        v.push(parameter(
-            "L0",
-            "Rest length of the muscle (the fusiform specimen is scaled to it)",
-            real(
-                "m",
-                Some(DEFAULT_L0),
-                Some(L0_RANGE.min),
-                Some(L0_RANGE.max),
-            ),
-            Var::L0,
-        ));
-        v.push(parameter(
-            "area",
-            "Mean cross-section V0/L0 of the fusiform muscle (radii scaled to it); stress = force / area",
-            real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
-            Var::Area,
-        ));
-        v.push(parameter(
-            "activation_dynamics",
-            "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
-            VarType::Boolean { start: Some(true) },
-            Var::ActivationDynamics,
-        ));
-        v.push(parameter(
-            "initial_activation",
-            "Activation level at the start time",
-            real("1", Some(0.0), Some(0.0), Some(1.0)),
-            Var::InitialActivation,
-        ));
-        let integer = |start, (min, max)| VarType::Integer {
-            start: Some(start),
-            min: Some(min),
-            max: Some(max),
-        };
-        v.push(parameter(
-            "n_axial",
-            "Mesh: element layers along the axis",
-            integer(DEFAULT_MESH.n_axial as i32, N_AXIAL_RANGE),
-            Var::NAxial,
-        ));
-        v.push(parameter(
-            "n_radial",
-            "Mesh: rings in the cross-section",
-            integer(DEFAULT_MESH.n_radial as i32, N_RADIAL_RANGE),
-            Var::NRadial,
-        ));
-        v.push(parameter(
-            "axial_grading",
-            "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
-            real(
-                "1",
-                Some(DEFAULT_AXIAL_GRADING),
-                Some(AXIAL_GRADING_RANGE.min),
-                Some(AXIAL_GRADING_RANGE.max),
-            ),
-            Var::AxialGrading,
-        ));
-        v.push(parameter(
-            "fibre_layout",
-            "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
-            integer(0, (0, 1)),
-            Var::FibreLayout,
-        ));
-        v.push(input(
-            "activation",
-            "Activation command u in [0, 1] (values outside are clamped with a warning)",
-            real("1", Some(0.0), Some(0.0), Some(1.0)),
-            Var::Activation,
-        ));
-        v.push(input(
-            "length",
-            "Muscle length reached at the end of the step",
-            real(
-                "m",
-                Some(DEFAULT_L0),
-                Some(L0_RANGE.min),
-                Some(L0_RANGE.max),
-            ),
-            Var::Length,
-        ));
-        let activation_deps = ["activation", "activation_dynamics", "initial_activation"];
-        let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
-        state_deps.extend([
-            "length",
-            "L0",
-            "area",
-            "n_axial",
-            "n_radial",
-            "axial_grading",
-            "fibre_layout",
-        ]);
-        state_deps.extend(
-            [
-                ParamId::B,
-                ParamId::C,
-                ParamId::Alpha,
-                ParamId::Beta,
-                ParamId::A,
-                ParamId::Sigma0,
-                ParamId::LambdaOpt,
-                ParamId::Dcomp,
-                ParamId::K,
-            ]
-            .map(|id| Params::info(id).name),
-        );
-        let output = |name, description, ty, depends_on, id| ScalarVariable {
-            name,
-            description,
-            causality: Causality::Output,
-            variability: Variability::Continuous,
-            initial: Some(Initial::Calculated),
-            ty,
-            depends_on,
-            id,
-        };
-        for (out, name, description, unit) in OUTPUTS {
-            let deps = if out == Output::ActivationLevel {
-                activation_deps.to_vec()
-            } else {
-                state_deps.clone()
-            };
-            v.push(output(
-                name,
-                description,
-                real(unit, None, None, None),
-                deps,
-                Var::Out(out),
-            ));
-        }
-        v.push(ScalarVariable {
-            variability: Variability::Discrete,
-            ..output(
-                "newton_iterations",
-                "Newton iterations of the last step (all substeps, including the predictor)",
-                VarType::Integer {
-                    start: None,
-                    min: None,
-                    max: None,
-                },
-                state_deps.clone(),
-                Var::NewtonIterations,
-            )
-        });
-        v
+        S::SPEC.variables(all_variables())
     }
 
     fn new() -> Self {
-        let mut m = HillFE {
+        let mut m = HillFEModel {
+            scene: PhantomData,
             params: Params::default(),
             l0: DEFAULT_L0,
             area: DEFAULT_AREA,
-            activation_dynamics: true,
+            // Without the component: a = u (its switch compiled in as false).
+            activation_dynamics: S::SPEC.components.activation_dynamics,
             initial_activation: 0.0,
             n_axial: DEFAULT_MESH.n_axial as i32,
             n_radial: DEFAULT_MESH.n_radial as i32,
@@ -570,7 +417,20 @@ impl Model for HillFE {
             newton_iterations: 0,
             derivatives: OnceLock::new(),
         };
-        m.initialize().expect("the default start values are valid");
+        // The scene's start values and constants (checked when the scene was
+        // resolved; the setters check them again).
+        let all = all_variables();
+        crate::scene::apply_settings(&S::SPEC, &all, |var, value| {
+            match value {
+                Value::Real(x) => m.set_real(var, x),
+                Value::Integer(i) => m.set_integer(var, i),
+                Value::Boolean(b) => m.set_boolean(var, b),
+            }
+            .map(|_| ())
+            .map_err(|e| e.0)
+        })
+        .expect("the scene's settings are valid");
+        m.initialize().expect("the scene's start values are valid");
         m
     }
 
@@ -881,7 +741,8 @@ impl Model for HillFE {
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
         let bad = |m: String| ModelError(format!("HillMuscleFE state: {m}"));
         let mut r = ByteReader::new(input);
-        let mut m = HillFE {
+        let mut m = HillFEModel {
+            scene: PhantomData,
             params: Params::default(),
             l0: DEFAULT_L0,
             area: DEFAULT_AREA,
@@ -1039,6 +900,186 @@ impl Model for HillFE {
         }
         Ok(m)
     }
+}
+
+/// The [`ModelInfo`] of the FE model of scene `spec`: its identifier,
+/// description and DefaultExperiment.
+pub fn info_for(spec: &crate::scene::SceneSpec) -> ModelInfo {
+    ModelInfo {
+        model_identifier: spec.model_identifier,
+        description: spec.description,
+        version: env!("CARGO_PKG_VERSION"),
+        units: units(),
+        default_experiment: spec.default_experiment,
+        max_input_derivative_order: 1,
+        direct_feedthrough: false,
+    }
+}
+
+/// Every variable the FE model can expose, in table order (the full
+/// `HillMuscleFE` exposes all of them; a scene a subset,
+/// [`crate::scene::SceneSpec::variables`]).
+pub fn all_variables() -> Vec<ScalarVariable<Var>> {
+    let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
+        .iter()
+        .map(|info| {
+            parameter(
+                info.name,
+                info.description,
+                real(
+                    info.unit,
+                    Some(info.default),
+                    Some(info.range.min),
+                    Some(info.range.max),
+                ),
+                Var::Param(info.id),
+            )
+        })
+        .collect();
+    v.push(parameter(
+        "L0",
+        "Rest length of the muscle (the fusiform specimen is scaled to it)",
+        real(
+            "m",
+            Some(DEFAULT_L0),
+            Some(L0_RANGE.min),
+            Some(L0_RANGE.max),
+        ),
+        Var::L0,
+    ));
+    v.push(parameter(
+        "area",
+        "Mean cross-section V0/L0 of the fusiform muscle (radii scaled to it); stress = force / area",
+        real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
+        Var::Area,
+    ));
+    v.push(parameter(
+        "activation_dynamics",
+        "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
+        VarType::Boolean { start: Some(true) },
+        Var::ActivationDynamics,
+    ));
+    v.push(parameter(
+        "initial_activation",
+        "Activation level at the start time",
+        real("1", Some(0.0), Some(0.0), Some(1.0)),
+        Var::InitialActivation,
+    ));
+    let integer = |start, (min, max)| VarType::Integer {
+        start: Some(start),
+        min: Some(min),
+        max: Some(max),
+    };
+    v.push(parameter(
+        "n_axial",
+        "Mesh: element layers along the axis",
+        integer(DEFAULT_MESH.n_axial as i32, N_AXIAL_RANGE),
+        Var::NAxial,
+    ));
+    v.push(parameter(
+        "n_radial",
+        "Mesh: rings in the cross-section",
+        integer(DEFAULT_MESH.n_radial as i32, N_RADIAL_RANGE),
+        Var::NRadial,
+    ));
+    v.push(parameter(
+        "axial_grading",
+        "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
+        real(
+            "1",
+            Some(DEFAULT_AXIAL_GRADING),
+            Some(AXIAL_GRADING_RANGE.min),
+            Some(AXIAL_GRADING_RANGE.max),
+        ),
+        Var::AxialGrading,
+    ));
+    v.push(parameter(
+        "fibre_layout",
+        "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
+        integer(0, (0, 1)),
+        Var::FibreLayout,
+    ));
+    v.push(input(
+        "activation",
+        "Activation command u in [0, 1] (values outside are clamped with a warning)",
+        real("1", Some(0.0), Some(0.0), Some(1.0)),
+        Var::Activation,
+    ));
+    v.push(input(
+        "length",
+        "Muscle length reached at the end of the step",
+        real(
+            "m",
+            Some(DEFAULT_L0),
+            Some(L0_RANGE.min),
+            Some(L0_RANGE.max),
+        ),
+        Var::Length,
+    ));
+    let activation_deps = ["activation", "activation_dynamics", "initial_activation"];
+    let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
+    state_deps.extend([
+        "length",
+        "L0",
+        "area",
+        "n_axial",
+        "n_radial",
+        "axial_grading",
+        "fibre_layout",
+    ]);
+    state_deps.extend(
+        [
+            ParamId::B,
+            ParamId::C,
+            ParamId::Alpha,
+            ParamId::Beta,
+            ParamId::A,
+            ParamId::Sigma0,
+            ParamId::LambdaOpt,
+            ParamId::Dcomp,
+            ParamId::K,
+        ]
+        .map(|id| Params::info(id).name),
+    );
+    let output = |name, description, ty, depends_on, id| ScalarVariable {
+        name,
+        description,
+        causality: Causality::Output,
+        variability: Variability::Continuous,
+        initial: Some(Initial::Calculated),
+        ty,
+        depends_on,
+        id,
+    };
+    for (out, name, description, unit) in OUTPUTS {
+        let deps = if out == Output::ActivationLevel {
+            activation_deps.to_vec()
+        } else {
+            state_deps.clone()
+        };
+        v.push(output(
+            name,
+            description,
+            real(unit, None, None, None),
+            deps,
+            Var::Out(out),
+        ));
+    }
+    v.push(ScalarVariable {
+        variability: Variability::Discrete,
+        ..output(
+            "newton_iterations",
+            "Newton iterations of the last step (all substeps, including the predictor)",
+            VarType::Integer {
+                start: None,
+                min: None,
+                max: None,
+            },
+            state_deps.clone(),
+            Var::NewtonIterations,
+        )
+    });
+    v
 }
 
 /// The model, for the FMU's `documentation/index.html`.

@@ -1,11 +1,14 @@
 //! Force-velocity relation f_v (paper eq 12 as restated in MODEL_NOTES "Hill fibre").
 
+use super::components::Components;
+
 /// f_v(λ̇m) and d f_v / d λ̇m (paper eq 12 as restated in MODEL_NOTES
 /// "Hill fibre"), with x = λ̇m / λ̇_m^min (x > 0 when shortening):
 /// - shortening (λ̇m ≤ 0): f_v = (1 − x) / (1 + k_c x), and 0 for x ≥ 1;
 /// - lengthening (λ̇m > 0): f_v = d − (d − 1)(1 + x) / (1 − k_e k_c x).
 ///
 /// f_v(0) = 1, f_v is non-decreasing in λ̇m and tends to d + (d − 1)/(k_e k_c).
+#[inline]
 pub fn force_velocity(
     lambda_dot_m: f64,
     lambda_dot_min: f64,
@@ -31,6 +34,56 @@ pub fn force_velocity(
             d - (d - 1.0) * (1.0 + x) / den,
             -(d - 1.0) * (1.0 + kk) / (den * den) * dx,
         )
+    }
+}
+
+/// [`force_velocity`] with only the branches of eq 12 that `L` includes
+/// ([`Components::FV_SHORTENING`], [`Components::FV_LENGTHENING`]): an absent
+/// branch is replaced by its value at λ̇m = 0, f_v = 1 (df_v = 0). That keeps
+/// f_v continuous and non-decreasing, so the CE–SEE residual of MODEL_NOTES
+/// "Hill fibre" stays monotone with a unique root; a scene whose root lies on
+/// an absent branch is told so by its FMU (the step is discarded). With both
+/// branches this is [`force_velocity`] (the same code, bit for bit).
+#[inline]
+pub fn force_velocity_with<L: Components>(
+    lambda_dot_m: f64,
+    lambda_dot_min: f64,
+    kc: f64,
+    ke: f64,
+    d: f64,
+) -> (f64, f64) {
+    if branch_included::<L>(lambda_dot_m) {
+        force_velocity(lambda_dot_m, lambda_dot_min, kc, ke, d)
+    } else {
+        (1.0, 0.0)
+    }
+}
+
+/// Whether the branch of eq 12 that λ̇m lies on (shortening λ̇m ≤ 0,
+/// lengthening λ̇m > 0) is included in `L`.
+#[inline]
+pub fn branch_included<L: Components>(lambda_dot_m: f64) -> bool {
+    if lambda_dot_m <= 0.0 {
+        L::FV_SHORTENING
+    } else {
+        L::FV_LENGTHENING
+    }
+}
+
+/// [`force_velocity_curvature`] of [`force_velocity_with`]: 0 on an absent
+/// branch (f_v = 1 there).
+#[inline]
+pub fn force_velocity_curvature_with<L: Components>(
+    lambda_dot_m: f64,
+    lambda_dot_min: f64,
+    kc: f64,
+    ke: f64,
+    d: f64,
+) -> f64 {
+    if branch_included::<L>(lambda_dot_m) {
+        force_velocity_curvature(lambda_dot_m, lambda_dot_min, kc, ke, d)
+    } else {
+        0.0
     }
 }
 

@@ -15,8 +15,11 @@
 //! the end-of-step fibre stretch λ̄f(t+h) (MODEL_NOTES allows this; the paper
 //! uses λ̄f(t)), which makes the step map a function of the end state only.
 
+use super::components::{Components, FullLaw};
 use super::force_length::force_length;
-use super::force_velocity::{force_velocity, force_velocity_branch, force_velocity_curvature};
+use super::force_velocity::{
+    force_velocity_branch, force_velocity_curvature_with, force_velocity_with,
+};
 use super::parallel_element::pe_stress;
 use super::params::Params;
 use super::root_finding::{safeguarded_newton, RootError};
@@ -158,7 +161,52 @@ pub fn fibre_response(
     hist: &FibreHistory,
     rate: FibreRate,
 ) -> FibreResponse {
-    let (sigma_pe, dsigma_pe) = pe_stress(lambda_f, p.sigma0, p.a_pe);
+    fibre_response_with::<FullLaw>(p, lambda_f, activation, hist, rate)
+}
+
+/// [`fibre_response`] with the components `L` includes ([`Components`]):
+/// without the parallel element σ_p = 0; without the contractile and series
+/// elements the fibre is the parallel element alone, W = σ_p, with σ_s = 0
+/// and λs = 1 in closed form (MODEL_NOTES "Hill fibre": the CE carries
+/// nothing) — the same values, bit for bit, as the complete law's at
+/// activation 0, except the derivatives with respect to the activation and
+/// the history, which are 0 here (there is no activation to vary).
+pub fn fibre_response_with<L: Components>(
+    p: &Params,
+    lambda_f: f64,
+    activation: f64,
+    hist: &FibreHistory,
+    rate: FibreRate,
+) -> FibreResponse {
+    let (sigma_pe, dsigma_pe) = if L::PARALLEL {
+        pe_stress(lambda_f, p.sigma0, p.a_pe)
+    } else {
+        (0.0, 0.0)
+    };
+    if !L::CONTRACTILE {
+        let lambda_m = ce_stretch(p.k, lambda_f, 1.0);
+        return FibreResponse {
+            w: sigma_pe,
+            dw_dlambda: dsigma_pe,
+            dw_dactivation: 0.0,
+            dls_dlambda: 0.0,
+            dls_dactivation: 0.0,
+            dls_dhistory: 0.0,
+            dw_dhistory: 0.0,
+            sigma_see: 0.0,
+            sigma_pe,
+            history: FibreHistory {
+                lambda_s: 1.0,
+                lambda_m,
+            },
+            lambda_dot_m: match rate {
+                FibreRate::Isometric => 0.0,
+                FibreRate::Step { h } => (lambda_m - hist.lambda_m) / h,
+            },
+            iterations: 0,
+            rate,
+        };
+    }
     let (f_l, df_l) = force_length(lambda_f, p.lambda_opt);
     let drive = p.sigma0 * activation * f_l; // σ0 a f_λ
     let (sol, lambda_dot_m, dls_df, dls_da, dls_dh) = match rate {
@@ -180,7 +228,7 @@ pub fn fibre_response(
             (sol, 0.0, dls_df, dls_da, 0.0)
         }
         FibreRate::Step { h } => {
-            let sol = step_solve(p, lambda_f, drive, hist, h);
+            let sol = step_solve::<L>(p, lambda_f, drive, hist, h);
             let r_ls = sol.dsigma + drive * sol.dfv * p.k / h;
             let r_lf = -p.sigma0 * activation * df_l * sol.fv - drive * sol.dfv * (1.0 + p.k) / h;
             let r_a = -p.sigma0 * f_l * sol.fv;
@@ -242,7 +290,7 @@ pub fn fibre_stress(
         match rate {
             FibreRate::Isometric => (drive, see_stretch_for_stress(drive, p.alpha, p.beta)),
             FibreRate::Step { h } => {
-                let sol = step_solve(p, lambda_f, drive, hist, h);
+                let sol = step_solve::<FullLaw>(p, lambda_f, drive, hist, h);
                 (sol.sigma, sol.lambda_s)
             }
         }
@@ -276,11 +324,17 @@ struct SeeSolution {
 /// order together with the curve values of the last evaluation, once its
 /// estimated error C δ² is below 1e-15 (fast path, |δ| ≤ 1e-6) or |δ| ≤ 1e-12
 /// (bracketed path), which saves re-evaluating them.
-fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64) -> SeeSolution {
+fn step_solve<L: Components>(
+    p: &Params,
+    lambda_f: f64,
+    drive: f64,
+    hist: &FibreHistory,
+    h: f64,
+) -> SeeSolution {
     let ce_rate = |ls: f64| (ce_stretch(p.k, lambda_f, ls) - hist.lambda_m) / h;
     let evaluate = |ls: f64| {
         let (sigma, dsigma) = see_stress(ls, p.alpha, p.beta);
-        let (fv, dfv) = force_velocity(ce_rate(ls), p.lambda_dot_min, p.kc, p.ke, p.d);
+        let (fv, dfv) = force_velocity_with::<L>(ce_rate(ls), p.lambda_dot_min, p.kc, p.ke, p.d);
         SeeSolution {
             lambda_s: ls,
             sigma,
@@ -329,7 +383,8 @@ fn step_solve(p: &Params, lambda_f: f64, drive: f64, hist: &FibreHistory, h: f64
             let rate = ce_rate(x);
             let same_piece = force_velocity_branch(rate, p.lambda_dot_min)
                 == force_velocity_branch(ce_rate(next), p.lambda_dot_min);
-            let curvature = force_velocity_curvature(rate, p.lambda_dot_min, p.kc, p.ke, p.d);
+            let curvature =
+                force_velocity_curvature_with::<L>(rate, p.lambda_dot_min, p.kc, p.ke, p.d);
             let r2 = p.alpha * e.dsigma.abs() + drive * curvature.abs() * k_over_h * k_over_h;
             if same_piece && r2 / (2.0 * dr) * step * step <= 1e-15 {
                 return accept(e, next, iteration, k_over_h);
@@ -391,6 +446,7 @@ fn accept(e: SeeSolution, ls: f64, iterations: u32, k_over_h: f64) -> SeeSolutio
 
 #[cfg(test)]
 mod tests {
+    use super::super::force_velocity::force_velocity;
     use super::*;
 
     fn residual(p: &Params, lf: f64, a: f64, hist: &FibreHistory, h: f64, ls: f64) -> f64 {

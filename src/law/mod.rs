@@ -7,6 +7,7 @@
 //! reduction.
 
 pub mod activation;
+pub mod components;
 pub mod force_length;
 pub mod force_velocity;
 pub mod hill_fibre;
@@ -19,7 +20,8 @@ pub mod stress;
 pub mod uniaxial;
 pub mod volumetric;
 
+pub use components::{Components, FullLaw};
 pub use hill_fibre::{fibre_response, FibreHistory, FibreRate, FibreResponse};
 pub use params::{ParamError, ParamId, Params, PARAMETERS};
 pub use stress::LawPoint;
-pub use uniaxial::{solve_uniaxial, Uniaxial};
+pub use uniaxial::{solve_uniaxial, solve_uniaxial_with, Uniaxial};

@@ -58,7 +58,8 @@
 //! [`LawPoint::kirchhoff_variation`]: super::stress::LawPoint::kirchhoff_variation
 //! [`LawPoint::kirchhoff_activation_derivative`]: super::stress::LawPoint::kirchhoff_activation_derivative
 
-use super::hill_fibre::{fibre_response, FibreHistory, FibreRate, FibreResponse};
+use super::components::{Components, FullLaw};
+use super::hill_fibre::{fibre_response_with, FibreHistory, FibreRate, FibreResponse};
 use super::isotropic_matrix::matrix_derivatives;
 use super::params::Params;
 use super::root_finding::safeguarded_newton;
@@ -201,7 +202,7 @@ struct Evaluation {
 /// docs; MODEL_NOTES "The 1D Hill reduction" times J): T_d, the lateral
 /// residual g = τ22 and their partial derivatives, with U_I' (eq 25), U_J'
 /// (eq 27) and the fibre's W (MODEL_NOTES "Hill fibre").
-fn evaluate(
+fn evaluate<L: Components>(
     p: &Params,
     lambda: f64,
     q: f64,
@@ -213,8 +214,12 @@ fn evaluate(
     let mu2 = q / lambda; // μ̄²
     let i1 = lambda_f * lambda_f + 2.0 * mu2;
     let delta = lambda_f * lambda_f - mu2;
-    let (u1, u11) = matrix_derivatives(i1, p.b, p.c);
-    let fibre = fibre_response(p, lambda_f, activation, hist, rate);
+    let (u1, u11) = if L::MATRIX {
+        matrix_derivatives(i1, p.b, p.c)
+    } else {
+        (0.0, 0.0)
+    };
+    let fibre = fibre_response_with::<L>(p, lambda_f, activation, hist, rate);
     let (w, dw) = (fibre.w, fibre.dw_dlambda);
     let t_d = 2.0 * u1 * delta + lambda_f * w;
     let j = q * q * q;
@@ -266,6 +271,21 @@ pub fn solve_uniaxial(
     rate: FibreRate,
     q_guess: f64,
 ) -> Result<Uniaxial, UniaxialError> {
+    solve_uniaxial_with::<FullLaw>(p, lambda, activation, hist, rate, q_guess)
+}
+
+/// [`solve_uniaxial`] with the components of the law that `L` includes
+/// ([`Components`]; without the matrix U_I' = U_I'' = 0, the fibre as
+/// [`super::hill_fibre::fibre_response_with`]). The same solve: with
+/// [`FullLaw`] it is [`solve_uniaxial`].
+pub fn solve_uniaxial_with<L: Components>(
+    p: &Params,
+    lambda: f64,
+    activation: f64,
+    hist: &FibreHistory,
+    rate: FibreRate,
+    q_guess: f64,
+) -> Result<Uniaxial, UniaxialError> {
     if !(lambda.is_finite() && lambda > 0.0) {
         return Err(UniaxialError(format!(
             "axial stretch {lambda} must be finite and > 0"
@@ -280,7 +300,7 @@ pub fn solve_uniaxial(
     let mut guess = *hist;
     let mut ce_iterations = 0;
     for iterations in 1..=12u32 {
-        let e = evaluate(p, lambda, q, activation, &guess, rate);
+        let e = evaluate::<L>(p, lambda, q, activation, &guess, rate);
         ce_iterations += e.fibre.iterations;
         let step = e.g / e.dg_dq;
         if !(step.is_finite() && e.dg_dq > 0.0) {
@@ -292,7 +312,7 @@ pub fn solve_uniaxial(
         guess.lambda_s = e.fibre.history.lambda_s;
         q -= step.clamp(-0.2 * q, 0.2 * q);
     }
-    bracketed(p, lambda, activation, hist, rate).map(|mut u| {
+    bracketed::<L>(p, lambda, activation, hist, rate).map(|mut u| {
         u.ce_iterations += ce_iterations;
         u
     })
@@ -302,7 +322,7 @@ pub fn solve_uniaxial(
 /// σ22 = 0 of MODEL_NOTES "The 1D Hill reduction", eq 30 at
 /// F = diag(λ, μ, μ) times J; increasing in q near J = 1) and solve it with
 /// the safeguarded Newton iteration.
-fn bracketed(
+fn bracketed<L: Components>(
     p: &Params,
     lambda: f64,
     activation: f64,
@@ -311,7 +331,7 @@ fn bracketed(
 ) -> Result<Uniaxial, UniaxialError> {
     let ce_iterations = std::cell::Cell::new(0u32);
     let g = |q: f64| {
-        let e = evaluate(p, lambda, q, activation, hist, rate);
+        let e = evaluate::<L>(p, lambda, q, activation, hist, rate);
         ce_iterations.set(ce_iterations.get() + e.fibre.iterations);
         e
     };

@@ -1,0 +1,1 @@
+//! Unit tests of the scene files (filled in below).
