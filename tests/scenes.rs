@@ -467,3 +467,160 @@ fn without_the_matrix_the_stress_is_the_parallel_element_alone() {
         }
     }
 }
+
+/// Inputs with rest phases: at rest and pulled (0–0.3 s), a pulse with a
+/// rising command derivative, relaxation (the level decays but never
+/// returns to exactly 0), and a second muscle that stays at rest while its
+/// length oscillates.
+fn with_rest(t: f64) -> (f64, f64) {
+    let u = if (0.3..0.45).contains(&t) { 1.0 } else { 0.0 };
+    (
+        u,
+        DEFAULT_L0 * (1.0 + 0.15 * (2.0 * std::f64::consts::PI * 1.5 * t).sin()),
+    )
+}
+
+#[test]
+fn the_rest_shortcut_changes_nothing() {
+    // The full model with the shortcut of steps at rest (activation command
+    // and level exactly 0: no CE–SEE solve, one piece) against the general
+    // step: outputs, both columns of the directional derivatives, the
+    // serialized state, bit for bit, every step.
+    for rest_only in [false, true] {
+        let (mut fast, mut general) = (Hill1D::new(), Hill1D::new());
+        general.set_rest_shortcut(false);
+        for m in [&mut fast, &mut general] {
+            m.initialize().unwrap();
+        }
+        let (mut at_rest, mut active) = (0, 0);
+        for i in 0..1200 {
+            let t = (i + 1) as f64 * H;
+            let (u, l) = with_rest(t);
+            let u = if rest_only { 0.0 } else { u };
+            for m in [&mut fast, &mut general] {
+                m.set_real(Var::Activation, u).unwrap();
+                m.set_real(Var::Length, l).unwrap();
+                if i % 200 == 7 {
+                    // A falling command derivative now and then: the level stays 0
+                    // (clamped), so the step is still at rest.
+                    m.set_real_input_derivative(Var::Activation, 1, -2.0)
+                        .unwrap();
+                }
+                m.do_step(i as f64 * H, H).unwrap();
+            }
+            if fast.last_step_statistics().at_rest {
+                at_rest += 1;
+            } else {
+                active += 1;
+            }
+            assert!(!general.last_step_statistics().at_rest);
+            for o in [
+                Output::Force,
+                Output::Stress,
+                Output::CauchyStress,
+                Output::ActivationLevel,
+                Output::FibreStretch,
+                Output::CeStretch,
+                Output::SeeStretch,
+                Output::ActiveStress,
+                Output::PassiveStress,
+            ] {
+                let (a, b) = (fast.get_real(Var::Out(o)), general.get_real(Var::Out(o)));
+                assert_eq!(a.to_bits(), b.to_bits(), "t = {t}: {o:?} {a} vs {b}");
+                for k in [Var::Activation, Var::Length] {
+                    let (a, b) = (
+                        fast.partial_derivative(Var::Out(o), k).unwrap(),
+                        general.partial_derivative(Var::Out(o), k).unwrap(),
+                    );
+                    assert_eq!(
+                        a.to_bits(),
+                        b.to_bits(),
+                        "t = {t}: d {o:?} / d {k:?} {a} vs {b}"
+                    );
+                }
+            }
+            let (mut x, mut y) = (Vec::new(), Vec::new());
+            fast.serialize(&mut x);
+            general.serialize(&mut y);
+            assert!(x == y, "t = {t}: states differ");
+        }
+        if rest_only {
+            assert_eq!(active, 0);
+        } else {
+            // At rest before the pulse (t < 0.3 s: 299 steps) and again from
+            // t = 0.808 s, when the falling command derivative of step 807
+            // clamps the decayed level (1.7e-8) to exactly 0 (392 steps).
+            assert!(
+                at_rest == 299 + 392 && active == 509,
+                "{at_rest} at rest, {active} not"
+            );
+        }
+    }
+}
+
+/// The FE scenes against the full HillMuscleFE on the same inputs: the same
+/// solver and arithmetic, so bit for bit (outputs and the force's
+/// directional derivatives).
+#[cfg(feature = "fe")]
+#[test]
+fn fe_scenes_equal_the_full_fe_muscle_bit_for_bit() {
+    use hill_muscle::fmus::hillfe::{HillFE, HillFEModel, Output as FeOut, Var as FeVar};
+    use hill_muscle::scene::shipped::{HillActivatedFE, HillPassiveFE};
+    fn outputs(spec: &SceneSpec) -> Vec<FeOut> {
+        spec.outputs
+            .iter()
+            .filter_map(|n| match *n {
+                "force" => Some(FeOut::Force),
+                "stress" => Some(FeOut::Stress),
+                "cauchy_stress" => Some(FeOut::CauchyStress),
+                "activation_level" => Some(FeOut::ActivationLevel),
+                "fibre_stretch" => Some(FeOut::FibreStretch),
+                "active_stress" => Some(FeOut::ActiveStress),
+                "passive_stress" => Some(FeOut::PassiveStress),
+                "volume_ratio_min" => Some(FeOut::VolumeRatioMin),
+                "volume_ratio_max" => Some(FeOut::VolumeRatioMax),
+                "max_fibre_stretch" => Some(FeOut::MaxFibreStretch),
+                _ => None, // newton_iterations: an Integer, compared below
+            })
+            .collect()
+    }
+    fn run<M: Model<Var = FeVar>>(spec: &SceneSpec, n: usize, h: f64) -> Vec<Vec<f64>> {
+        let mut m = M::new();
+        m.initialize().unwrap();
+        (0..n)
+            .map(|i| {
+                let t = (i + 1) as f64 * h;
+                if spec.inputs.activation {
+                    m.set_real(FeVar::Activation, 1.0).unwrap();
+                }
+                m.set_real(FeVar::Length, activated_pull(t * 10.0)).unwrap();
+                m.do_step(i as f64 * h, h).unwrap();
+                let mut row: Vec<f64> = outputs(spec)
+                    .iter()
+                    .map(|&o| m.get_real(FeVar::Out(o)))
+                    .collect();
+                row.push(f64::from(m.get_integer(FeVar::NewtonIterations)));
+                row.push(
+                    m.partial_derivative(FeVar::Out(FeOut::Force), FeVar::Length)
+                        .unwrap(),
+                );
+                row
+            })
+            .collect()
+    }
+    // 0.05 s of the activated elongation, time-compressed 10x (pulling from
+    // t = 0.05 s), 10 steps.
+    let (n, h) = (10, 5e-3);
+    compare(
+        "HillPassiveFE",
+        &run::<HillFEModel<HillPassiveFE>>(&HillPassiveFE::SPEC, n, h),
+        &run::<HillFE>(&HillPassiveFE::SPEC, n, h),
+        0.0,
+    );
+    compare(
+        "HillActivatedFE",
+        &run::<HillFEModel<HillActivatedFE>>(&HillActivatedFE::SPEC, n, h),
+        &run::<HillFE>(&HillActivatedFE::SPEC, n, h),
+        0.0,
+    );
+}

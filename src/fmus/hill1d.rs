@@ -320,6 +320,19 @@ pub struct Hill1DModel<S: Scene> {
     jacobian: Jacobian,
     /// Solver counts of the last completed step or initialization.
     statistics: Diagnostics,
+    /// Whether steps at rest take the shortcut (on; off only to test that
+    /// it changes nothing). Not state: not serialized, not compared.
+    rest_shortcut: Switch,
+}
+
+/// A switch that is not part of the model's state: equal to every other.
+#[derive(Clone, Copy, Debug)]
+struct Switch(bool);
+
+impl PartialEq for Switch {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 /// Solver counts of the last completed step (or of the initialization), for
@@ -339,6 +352,9 @@ pub struct StepStatistics {
     pub lateral_iterations: u32,
     /// Iterations of the CE–SEE solve, summed over every evaluation of the law.
     pub ce_iterations: u32,
+    /// The step was taken at rest ([`Hill1DModel::set_rest_shortcut`]):
+    /// activation command and level exactly 0, no CE–SEE solve, one piece.
+    pub at_rest: bool,
 }
 
 /// [`StepStatistics`] held by the model: diagnostics, not state. Not
@@ -645,6 +661,20 @@ impl<S: Scene> Hill1DModel<S> {
     /// level at the end of the step. Changes nothing (the caller commits).
     #[inline(always)]
     fn solve_step(&self, h: f64, lambda_end: f64, a_end: (f64, f64)) -> Result<Stepped, StepError> {
+        if !Self::CE {
+            return self.solve_passive(h, lambda_end);
+        }
+        // At rest — command 0 (not rising) and level 0, so the level is 0
+        // throughout the step — the CE carries nothing (σ0 a f_λ = 0): no
+        // CE–SEE solve and an error estimate of exactly 0, hence one piece.
+        if self.rest_shortcut.0
+            && self.command == 0.0
+            && self.command_rate <= 0.0
+            && self.activation_level == 0.0
+            && a_end.0 == 0.0
+        {
+            return self.solve_rest(h, lambda_end, a_end.1);
+        }
         // Positions within the step in units of h / 2^FINEST.
         const FINEST: u32 = 40;
         const WHOLE: u64 = 1 << FINEST;
@@ -802,6 +832,98 @@ impl<S: Scene> Hill1DModel<S> {
             prev = Some(([q0, ls0], [u.q, u.fibre.history.lambda_s], hs_j));
         }
     }
+    /// The step of a scene without the contractile element: the fibre is the
+    /// parallel element alone, so the state at the end of the step depends
+    /// on the end stretch only (no history, no activation: MODEL_NOTES "Hill
+    /// fibre" with σ0 a f_λ = 0) — one lateral solve on the passive law, no
+    /// substeps (the error estimate of the CE–SEE update is exactly 0), no
+    /// SEE predictor, no activation or history sensitivities. The lateral
+    /// solve starts from the same predicted q as the general path's one
+    /// piece, so the result is the complete law's at activation 0, bit for
+    /// bit (tests/scenes.rs).
+    #[inline(always)]
+    fn solve_passive(&self, h: f64, lambda_end: f64) -> Result<Stepped, StepError> {
+        let p = &self.params;
+        let q_guess = Predictor::predict(&self.predict.q, self.q, lambda_end - self.lambda, 0.0, h);
+        let u = solve_uniaxial_with::<LawOf<S>>(
+            p,
+            lambda_end,
+            0.0,
+            &self.history,
+            FibreRate::Step { h },
+            q_guess,
+        )
+        .map_err(|e| StepError::Discard(self.unsolvable(lambda_end * self.l0, &e.0)))?;
+        let stats = StepStatistics {
+            substeps: 1,
+            rejected_substeps: 0,
+            lateral_iterations: u.iterations,
+            ce_iterations: 0,
+            at_rest: true,
+        };
+        let sens = [
+            Sensitivity::default(),
+            combine(&[(&u.d_dlambda, 1.0 / self.l0)]),
+        ];
+        Ok(Stepped {
+            u,
+            a: 0.0,
+            da_du: 0.0,
+            sens,
+            stats,
+        })
+    }
+
+    /// The step at rest (see [`Hill1DModel::solve_step`]): the general path's
+    /// one piece without what cannot change it — the level within the step
+    /// (0), the SEE predictor (the CE–SEE solve is not run at zero drive,
+    /// so its starting point is not read), the error estimate (0), the
+    /// f_v branch check (σ_s = 0). The same lateral solve from the same
+    /// predicted q, hence the same result bit for bit (tests/scenes.rs,
+    /// `the_rest_shortcut_changes_nothing`).
+    fn solve_rest(&self, h: f64, lambda_end: f64, da_du: f64) -> Result<Stepped, StepError> {
+        let p = &self.params;
+        let q_guess = Predictor::predict(&self.predict.q, self.q, lambda_end - self.lambda, 0.0, h);
+        let u = solve_uniaxial_with::<LawOf<S>>(
+            p,
+            lambda_end,
+            0.0,
+            &self.history,
+            FibreRate::Step { h },
+            q_guess,
+        )
+        .map_err(|e| StepError::Discard(self.unsolvable(lambda_end * self.l0, &e.0)))?;
+        u.fibre
+            .history
+            .check_physical(p.k, u.lambda_f)
+            .map_err(|e| StepError::Discard(format!("length = {} m: {e}", lambda_end * self.l0)))?;
+        let stats = StepStatistics {
+            substeps: 1,
+            rejected_substeps: 0,
+            lateral_iterations: u.iterations,
+            ce_iterations: u.ce_iterations,
+            at_rest: true,
+        };
+        let sens = [
+            combine(&[(&u.d_dactivation, da_du)]),
+            combine(&[(&u.d_dlambda, 1.0 / self.l0)]),
+        ];
+        Ok(Stepped {
+            u,
+            a: 0.0,
+            da_du,
+            sens,
+            stats,
+        })
+    }
+
+    /// Turn the shortcut of steps at rest on (the default) or off. It changes
+    /// no result (a test compares both bit for bit); off only for that test
+    /// and for measuring what it saves.
+    pub fn set_rest_shortcut(&mut self, on: bool) {
+        self.rest_shortcut = Switch(on);
+    }
+
     /// A scene without one of the f_v branches (eq 12) computes f_v = 1 on
     /// it ([`crate::law::force_velocity::force_velocity_with`]); a step whose
     /// CE–SEE root lies on the absent branch — the CE carrying force while
@@ -921,6 +1043,7 @@ impl<S: Scene> Model for Hill1DModel<S> {
             outputs: [0.0; N_OUT],
             jacobian: Jacobian::default(),
             statistics: Diagnostics::default(),
+            rest_shortcut: Switch(true),
         };
         // Outputs at the start values are those of the initial equilibrium.
         // The scene's start values and constants (checked when the scene was
@@ -1098,6 +1221,7 @@ impl<S: Scene> Model for Hill1DModel<S> {
             rejected_substeps: 0,
             lateral_iterations: u.iterations,
             ce_iterations: u.ce_iterations,
+            at_rest: false,
         };
         self.commit(&u, a, None, outputs, jacobian, statistics);
         Ok(())
@@ -1112,8 +1236,13 @@ impl<S: Scene> Model for Hill1DModel<S> {
         }
         // Kept only when the step is accepted: on a discard the model must
         // stay unchanged.
-        let decay = Decay::for_step(self.decay, self.params.s, h);
-        let a_end = self.level(h, decay.value);
+        // Kept only when the step is accepted (no activation without the CE).
+        let decay = if Self::CE {
+            Some(Decay::for_step(self.decay, self.params.s, h))
+        } else {
+            None
+        };
+        let a_end = self.level(h, decay.map_or(1.0, |d| d.value));
         let lambda = end_length / self.l0;
         if !(self.stretch_range.0..=self.stretch_range.1).contains(&lambda) {
             return Err(StepError::Discard(
@@ -1140,7 +1269,7 @@ impl<S: Scene> Model for Hill1DModel<S> {
             )));
         }
         self.commit(&u, a, Some(h), outputs, jacobian, stats);
-        self.decay = Some(decay);
+        self.decay = decay;
         // Input derivatives hold for one step (they describe the input at the
         // communication point they were set at).
         self.command_rate = 0.0;

@@ -345,8 +345,22 @@ fn step_solve<L: Components>(
         }
     };
     if drive <= 0.0 {
-        // The CE carries nothing: σ_s = 0, λs = 1.
-        return evaluate(1.0);
+        // The CE carries nothing: σ_s = 0, λs = 1 (MODEL_NOTES "Hill fibre"),
+        // no solve. σ_s(1) = β (e⁰ − 1) = 0 and σ_s'(1) = α β e⁰ = α β
+        // (eq 7, 31) in closed form: the same numbers as evaluating eq 7 at
+        // λs = 1, without the exponential (test
+        // `zero_drive_is_the_closed_form_of_eq_7_at_rest`). f_v at the rate
+        // of a slack SEE is still needed: ∂λs/∂a (the activation derivative
+        // of the step) is σ0 f_λ f_v / σ_s'.
+        let (fv, dfv) = force_velocity_with::<L>(ce_rate(1.0), p.lambda_dot_min, p.kc, p.ke, p.d);
+        return SeeSolution {
+            lambda_s: 1.0,
+            sigma: 0.0,
+            dsigma: p.alpha * p.beta,
+            fv,
+            dfv,
+            iterations: 0,
+        };
     }
     let residual_of =
         |e: &SeeSolution| (e.sigma - drive * e.fv, e.dsigma + drive * e.dfv * p.k / h);
@@ -547,6 +561,46 @@ mod tests {
             // Physical bounds: 0 ≤ σ_s ≤ σ0 a f_v,max.
             assert!(r.sigma_see >= 0.0);
             assert!(r.sigma_see <= p.sigma0 * a * p.fv_max() * (1.0 + 1e-12) + 1e-9);
+        }
+    }
+
+    #[test]
+    fn zero_drive_is_the_closed_form_of_eq_7_at_rest() {
+        // With σ0 a f_λ = 0 the step is σ_s = 0, λs = 1 without a solve; the
+        // closed form equals eq 7 and its slope evaluated at λs = 1 bit for
+        // bit (what the solve returned before the shortcut).
+        let mut rng = Rng(4242);
+        for case in 0..2000 {
+            let p = Params {
+                alpha: rng.range(0.1, 1e3),
+                beta: 10f64.powf(rng.range(-3.0, 9.0)),
+                ..Params::default()
+            };
+            let lf = rng.range(0.3, 2.0);
+            let h = 10f64.powf(rng.range(-7.0, 0.0));
+            let hist = FibreHistory {
+                lambda_s: 1.0,
+                lambda_m: rng.range(0.2, 2.2),
+            };
+            // a = 0, or f_λ = 0 (r ≥ 1.6) with a > 0.
+            let a = if case % 2 == 0 { 0.0 } else { 1.0 };
+            let lf = if a > 0.0 { 1.7 * p.lambda_opt + lf } else { lf };
+            let sol = step_solve::<FullLaw>(
+                &p,
+                lf,
+                p.sigma0 * a * force_length(lf, p.lambda_opt).0,
+                &hist,
+                h,
+            );
+            let (sigma, dsigma) = see_stress(1.0, p.alpha, p.beta);
+            let rate = (ce_stretch(p.k, lf, 1.0) - hist.lambda_m) / h;
+            let (fv, dfv) = force_velocity(rate, p.lambda_dot_min, p.kc, p.ke, p.d);
+            assert_eq!(sol.lambda_s.to_bits(), 1f64.to_bits());
+            assert_eq!(sol.sigma.to_bits(), sigma.to_bits(), "case {case}");
+            assert_eq!(sol.dsigma.to_bits(), dsigma.to_bits(), "case {case}");
+            assert_eq!(sol.fv.to_bits(), fv.to_bits());
+            assert_eq!(sol.dfv.to_bits(), dfv.to_bits());
+            assert_eq!(sol.iterations, 0);
         }
     }
 

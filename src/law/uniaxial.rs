@@ -307,7 +307,7 @@ pub fn solve_uniaxial_with<L: Components>(
             break;
         }
         if step.abs() <= 1e-9 {
-            return finish(p, lambda, q, -step, e, (iterations, ce_iterations));
+            return finish::<L>(p, lambda, q, -step, e, (iterations, ce_iterations));
         }
         guess.lambda_s = e.fibre.history.lambda_s;
         q -= step.clamp(-0.2 * q, 0.2 * q);
@@ -372,7 +372,7 @@ fn bracketed<L: Components>(
         ))
     })?;
     let e = g(root.x);
-    finish(
+    finish::<L>(
         p,
         lambda,
         root.x,
@@ -388,7 +388,7 @@ fn bracketed<L: Components>(
 /// total derivatives by the implicit function theorem on g(λ, q, a) = 0
 /// (module docs).
 #[inline]
-fn finish(
+fn finish<L: Components>(
     p: &Params,
     lambda: f64,
     q0: f64,
@@ -423,8 +423,18 @@ fn finish(
     };
     // g = p̂(q³) − T_d/3 = 0  ⇒  dq = (∂T_d/3) / g_q along each driver.
     let dq_dl = e.dtd_dlambda / 3.0 / e.dg_dq;
-    let dq_da = e.dtd_da / 3.0 / e.dg_dq;
-    let dq_dh = e.dtd_dhistory / 3.0 / e.dg_dq;
+    // Without the contractile element nothing depends on the activation or
+    // the history: those sensitivities are 0 and not computed.
+    let (d_dactivation, d_dhistory) = if L::CONTRACTILE {
+        let dq_da = e.dtd_da / 3.0 / e.dg_dq;
+        let dq_dh = e.dtd_dhistory / 3.0 / e.dg_dq;
+        (
+            sensitivity(dq_da, e.dtd_da, 0.0, fibre.dls_dactivation),
+            sensitivity(dq_dh, e.dtd_dhistory, 0.0, fibre.dls_dhistory),
+        )
+    } else {
+        (Sensitivity::default(), Sensitivity::default())
+    };
     Ok(Uniaxial {
         lambda,
         q,
@@ -433,8 +443,8 @@ fn finish(
         lambda_f,
         tau11,
         d_dlambda: sensitivity(dq_dl, e.dtd_dlambda, 1.0, 0.0),
-        d_dactivation: sensitivity(dq_da, e.dtd_da, 0.0, fibre.dls_dactivation),
-        d_dhistory: sensitivity(dq_dh, e.dtd_dhistory, 0.0, fibre.dls_dhistory),
+        d_dactivation,
+        d_dhistory,
         fibre,
         iterations,
         ce_iterations,
