@@ -6,8 +6,10 @@
 - Each binary exports all 34 functions of the FMI 2.0 common and
   co-simulation API, and fmi2GetVersion / fmi2GetTypesPlatform answer "2.0"
   and "default".
+- Every shipped scene's FMU is checked (issue 6); the passive 1D scene's
+  binary has no CE-SEE solve in it.
 - HillMuscle1D's binary is built without the ``fe`` Cargo feature (fmu_build:
-  ``--no-default-features --features export-hill1d``): its symbol table
+  ``--no-default-features --features export-scene``): its symbol table
   names nothing from ``hill_muscle::fe``, ``hill_muscle::fmus::hillfe`` or
   faer, while HillMuscleFE's does (so the check can fail), and it is several
   times smaller.
@@ -28,7 +30,9 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-IDS = ["HillMuscle1D", "HillMuscleFE"]
+# Every shipped scene (issue 6): fmu_build/scenes/*.toml, one FMU each.
+IDS = sorted(p.stem for p in (REPO / "modelDescription").glob("*.xml"))
+ONE_D = [i for i in IDS if i.endswith("1D")]
 
 FMI2_FUNCTIONS = [
     # common
@@ -150,6 +154,28 @@ def test_1d_binary_contains_no_fe_code_and_the_fe_binary_does(extracted):
     assert [s for s in one_d if FE_CODE.search(s)] == []
     assert any("hill_muscle::fe::" in s for s in fe), "the FE binary names its FE code"
     assert any(re.search(r"\bfaer::", s) for s in fe), "the FE binary names faer"
+
+
+@pytest.mark.parametrize("fmu_id", [i for i in ONE_D if i != "HillMuscle1D"])
+def test_every_1d_scene_binary_contains_no_fe_code(extracted, fmu_id):
+    names = symbols(binary(extracted, fmu_id))
+    assert any(s.startswith("hill_muscle::law::") for s in names)
+    assert [s for s in names if FE_CODE.search(s)] == []
+
+
+CE_SEE_SOLVE = re.compile(r"\bhill_muscle::law::hill_fibre::step_solve\b")
+
+
+def test_the_passive_binary_contains_no_ce_see_solve_and_the_full_one_does(extracted):
+    """The passive scene has no contractile element: the CE-SEE step solve
+    (law::hill_fibre::step_solve and its closures) is not compiled into its
+    binary, while the full 1D binary names it (so the check can fail)."""
+    full = symbols(binary(extracted, "HillMuscle1D"))
+    passive = symbols(binary(extracted, "HillPassive1D"))
+    assert any(CE_SEE_SOLVE.search(s) for s in full)
+    assert [s for s in passive if CE_SEE_SOLVE.search(s)] == []
+    # The passive binary is the smaller one.
+    assert binary(extracted, "HillPassive1D").stat().st_size < binary(extracted, "HillMuscle1D").stat().st_size
 
 
 def test_1d_binary_is_much_smaller_than_the_fe_binary(extracted):
