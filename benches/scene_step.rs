@@ -292,7 +292,7 @@ fn main() {
         use hill_muscle::fmus::hillfe::HillFEModel;
         type FullFE = HillFEModel<HillMuscleFE>;
         // h = 1e-4 on the FE muscle: a few hundred steps per run.
-        let m = if quick { 20 } else { 300 };
+        let m = if quick { 10 } else { 60 };
         let fe_in = |t: f64| l0 * (1.0 + 0.1 * (2.0 * std::f64::consts::PI * 2.0 * t).sin());
         rows.push(compare_models::<HillFEModel<HillPassiveFE>, FullFE>(
             "HillPassiveFE",

@@ -104,9 +104,9 @@ struct ExperimentFile {
 fn value_of(table: &str, name: &str, v: &toml::Value) -> Result<Value, String> {
     match v {
         toml::Value::Float(x) => Ok(Value::Real(*x)),
-        toml::Value::Integer(i) => i32::try_from(*i)
+        toml::Value::Integer(i) => Ok(i32::try_from(*i)
             .map(Value::Integer)
-            .or_else(|_| Ok(Value::Real(*i as f64))),
+            .unwrap_or(Value::Real(*i as f64))),
         toml::Value::Boolean(b) => Ok(Value::Boolean(*b)),
         other => Err(format!(
             "[{table}] {name} = {other}: must be a number or true/false"
