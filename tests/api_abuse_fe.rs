@@ -1,0 +1,527 @@
+//! The FMI API of `HillMuscleFE` under abuse (issue 4, section 3): the
+//! property-based harness of `tests/api_abuse/harness.rs` — what it
+//! generates and the properties it checks for every call are documented
+//! there — run on the finite-element muscle through
+//! `hill_muscle::fmi2::api::*::<HillFE>`, exactly what its exported
+//! `fmi2Xxx` symbols forward to. `tests/api_abuse.rs` runs the same harness
+//! on `HillMuscle1D`.
+//!
+//! # What differs from `HillMuscle1D`, and how the harness handles it
+//!
+//! From the model's documentation (`src/fmus/hillfe.rs`, README "Bad
+//! input") and its variable table:
+//!
+//! - **Integer parameters** `n_axial` ∈ [1, 96], `n_radial` ∈ [1, 16] (the
+//!   mesh) and `fibre_layout` ∈ [0, 1], and the Integer output
+//!   `newton_iterations`. The oracle takes their ranges from the table:
+//!   an Integer parameter set outside its `min`/`max` must be `fmi2Error`,
+//!   inside it must not; reading `newton_iterations` in initialization mode
+//!   may compute the initial values (not a pure call there). Generated
+//!   Integer values are mostly in `[min, min + 1]` and just outside the
+//!   range ([`Fe::INTEGER_SPAN`]); the special-value test sets every Integer
+//!   variable to i32::MIN, −1, 0, 1, 2 and both ends of its range ±1, but
+//!   not to in-range values above 2 (a 96 × 16 mesh costs seconds per
+//!   initialization). `axial_grading` is one more Real parameter (in the
+//!   special-value test and the bound tests like the others).
+//! - **Cost**: a new instance (and every `fmi2Reset`) builds and solves the
+//!   default 16 × 3 mesh (2,592 tetrahedra, ~20 ms here), and a step on it
+//!   costs ~1 ms or more. So the `Init` macro sets the smallest mesh, 1 × 1,
+//!   in three of four cases and 2 × 1 in the fourth ([`Fe::INIT_INTEGERS`]);
+//!   every other `fmi2EnterInitializationMode` of the random sequences, and
+//!   of the deterministic tests and instantiation lives, is followed by
+//!   setting 1 × 1 ([`Fe::CHEAP_INTEGERS`]), so no sequence steps the
+//!   default mesh. A 1 × 1 mesh has no free node (every node is on a clamped
+//!   end face): its step is one evaluation (tens of µs, one Newton
+//!   iteration), which exercises the FMI layer, the activation dynamics,
+//!   the CE–SEE histories and the serialized state, but not the solver. A
+//!   2 × 1 mesh has one free slice: Newton, line search, substepping and
+//!   the discards of a step whose substeps all fail (from ~40 µs to several
+//!   ms per step), with a real factorised-tangent anchor and predictor trend
+//!   in the FMU state. The pool of restorable states and the parameter-bound
+//!   test use 2 × 1 ([`Fe::SOLVER_INTEGERS`]). Runs are at most 60 steps
+//!   (150 for the 1D model); a `DiscardRecover` also jumps to 5 L0 (on the
+//!   2 × 1 mesh the solver then fails on every substep split: a discard
+//!   of the solver's, not of the law's range) and to 2 and 0.3 L0 (hard
+//!   jumps completed in substeps); the special-value and every-function
+//!   tests put all variables or calls of one state into one sequence (each
+//!   from the same saved state) instead of one sequence each, the
+//!   special-value test with debug logging on in every other state instead
+//!   of both settings in each.
+//! - **Discards**: `do_step` discards when the length leaves what the law
+//!   can evaluate, when the end length is not finite and > 0, and when
+//!   Newton fails on every substep split (up to 64); the instance is then
+//!   "exactly as before the step". The harness checks that for every
+//!   discarded step of both models: the model's serialized bytes are
+//!   unchanged and the layer changed only to `stepFailed` at the step's
+//!   communication point (`fmi2LastSuccessfulTime`), with
+//!   `fmi2DoStepStatus` = `fmi2Discard`.
+//! - **Initialization can fail**: `fmi2ExitInitializationMode` (and the
+//!   first read of a computed value in initialization mode) may refuse
+//!   in-range parameters when the isometric equilibrium solve fails
+//!   ("initialization: ..."). The oracle leaves these calls open for both
+//!   models; the harness checks that a refusal is an `fmi2Error` with a
+//!   message that changes nothing (the instance stays in initialization
+//!   mode); the parameter-bound test accepts such a refusal for this model
+//!   only ([`Fe::INIT_MAY_FAIL`]) and lists the refused cases.
+//! - **Directional derivatives** only of `force`, `stress` and
+//!   `activation_level` ([`Fe::DERIVATIVE_OUTPUTS`]): any other unknown
+//!   with a known is `fmi2Error` (the model's documented contract).
+//! - **A larger FMU state**: positions, element histories, the factorised
+//!   tangent's anchor and the predictor's trend. Every snapshot must
+//!   deserialize (property 7) except for the known bug below; the corrupt
+//!   states of `corrupt_fmu_states` reach these parts of the state too.
+//! - **`StepError::Error`** only for a model without a muscle, which
+//!   `HillFE::new` never makes (it initializes) and `HillFE::serialize`
+//!   never writes: for every instance and every state the FMU serialized,
+//!   every `fmi2Error` is still a rejection that must change nothing. (A
+//!   crafted state without a muscle is accepted: a bug, below.)
+//!
+//! # Case counts and time
+//!
+//! CI mode (the default, a release build): 200 random sequences for the
+//! main property plus 50 corrupt-state and 50 instantiation cases, and the
+//! deterministic tests: the every-function and special-value tests with one
+//! sequence per state (7 each; the special-value sequences set all 32 Real
+//! and 4 Integer variables, ~3,100 calls each, debug logging on in every
+//! other state), 4 × 25,000 drift steps, the reset and NULL tests from
+//! every state, 40 parameter-bound cases — ~350 sequences in all. Measured
+//! with `cargo test --release --test api_abuse_fe` on the project's 2-core
+//! machine: 31 s wall time (43 s CPU) with one other job running (load
+//! average 2), 59 s while other jobs kept both cores busy (load average
+//! 4.7). The main property costs ≈0.1 s per sequence, most of it the
+//! ~20 ms of each new instance and reset (the primary, its twin, the reset
+//! shadows). In an unoptimized build every test here is ignored (a new
+//! instance costs ~2.4 s there). Long runs:
+//!
+//! ```sh
+//! API_ABUSE_CASES=10000 cargo test --release --test api_abuse_fe   # ≈25 min
+//! API_ABUSE_CASES=10000 API_ABUSE_SEED=7 cargo test --release --test api_abuse_fe
+//! API_ABUSE_CASES=2000 API_ABUSE_STATS=1 cargo test --release --test api_abuse_fe \
+//!     random_call_sequences -- --nocapture   # what was exercised
+//! ```
+//!
+//! # Bugs found (ignored regression tests at the end of this file)
+//!
+//! In `HillMuscleFE`:
+//!
+//! - [`bug_mesh_parameters_set_before_initialization_make_the_state_unserializable`] —
+//!   after `n_axial` or `n_radial` is set (instantiated or in initialization
+//!   mode, before the next successful initialization), the FMU's own
+//!   serialized state is refused by its own `fmi2DeSerializeFMUstate`
+//!   ("N position values"). Every `Init` produces such states, so the
+//!   harness tolerates exactly this failure ([`Fe::known_round_trip_bug`]:
+//!   the bytes decode once the mesh parameters are set back to those of a
+//!   committed mesh; [`the_known_mesh_bug_is_recognised_only_where_it_applies`])
+//!   to check everything else.
+//! - [`bug_a_specimen_much_wider_than_long_is_refused_at_rest`] — `L0` = 1e-3
+//!   m or `area` = 1 m² (both in their declared ranges) and the muscle at
+//!   rest: `fmi2ExitInitializationMode` refuses ("no isometric equilibrium
+//!   ... no decrease along the Newton direction") the exact, stress-free
+//!   reference configuration. Tolerated by [`Fe::INIT_MAY_FAIL`] (the
+//!   refusal itself is well-formed: an error with a message that changes
+//!   nothing), listed by the parameter-bound test.
+//! - [`bug_a_state_without_a_muscle_deserializes_and_cannot_step`] — a
+//!   crafted, well-formed state without a muscle deserializes; its first
+//!   step is an `fmi2Error` into the `error` state. Not reached by the
+//!   random mutations.
+//!
+//! In the FMI layer, reachable only with a model that refuses some
+//! derivatives:
+//!
+//! - [`bug_refused_directional_derivative_computes_the_initial_values`] —
+//!   a refused `fmi2GetDirectionalDerivative` in initialization mode keeps
+//!   the initial values it computed before the refusal. Tolerated exactly
+//!   by the harness (`Harness::initialized_by_refusal`).
+
+#![cfg(feature = "fe")]
+
+#[macro_use]
+#[path = "api_abuse/harness.rs"]
+mod harness;
+
+use std::ptr::null_mut;
+
+use harness::{fix_checksum, round_trip_status, split_state, vr_named, Fmu, Integers, Subject};
+use hill_muscle::fmi2::api;
+use hill_muscle::fmi2::bytes::ByteReader;
+use hill_muscle::fmi2::instance::{decode_state, LayerState};
+use hill_muscle::fmi2::model_description::guid;
+use hill_muscle::fmi2::state::FmiState;
+use hill_muscle::fmi2::types::*;
+use hill_muscle::fmus::hillfe::HillFE;
+
+/// `HillMuscleFE` as the harness's subject.
+pub struct Fe;
+
+/// The subject of this crate's harness.
+pub type Sub = Fe;
+
+/// The smallest mesh: no free node.
+const MESH_1X1: Integers = &[("n_axial", 1), ("n_radial", 1)];
+/// The smallest mesh with free nodes (one interior slice).
+const MESH_2X1: Integers = &[("n_axial", 2), ("n_radial", 1)];
+
+/// The regression test of the known round-trip bug.
+const MESH_BUG: &str =
+    "bug_mesh_parameters_set_before_initialization_make_the_state_unserializable";
+
+impl Subject for Fe {
+    type M = HillFE;
+    const CI_CASES: u32 = 200;
+    const CORRUPT_CASES: (u32, u32) = (1, 4);
+    const INSTANTIATE_CASES: (u32, u32) = (1, 4);
+    const INIT_INTEGERS: &'static [(u32, Integers)] = &[(3, MESH_1X1), (1, MESH_2X1)];
+    const CHEAP_INTEGERS: Integers = MESH_1X1;
+    const SOLVER_INTEGERS: Integers = MESH_2X1;
+    const INTEGER_SPAN: Option<i32> = Some(1);
+    const LONG_RUN: usize = 60;
+    /// Also 5 L0 (in the law's range; on the 2 × 1 mesh the solver fails
+    /// on every substep split: a discard of the solver's), 2 L0 and 0.3 L0
+    /// (hard jumps it completes in substeps).
+    const DISCARD_FACTORS: &'static [f64] = &[1.05, 6.0, 10.0, 100.0, 1e10, 0.01, 5.0, 2.0, 0.3];
+    const DRIFT_STEPS: usize = 25_000;
+    const SPECIAL_VALUE_VARS_PER_SEQUENCE: usize = usize::MAX;
+    const SPECIAL_VALUE_BOTH_LOGGING: bool = false;
+    const FUNCTIONS_PER_SEQUENCE: usize = usize::MAX;
+    const LARGEST_INTEGER_TRIED: i32 = 2;
+    const INIT_MAY_FAIL: bool = true;
+    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> =
+        Some(&["force", "stress", "activation_level"]);
+
+    /// The known bug [`MESH_BUG`]: the deserializer builds the mesh from the
+    /// state's mesh parameters, while the positions (and histories) it reads
+    /// are those of the mesh of the last successful initialization. So the
+    /// refusal is the known one exactly when it is about the positions, in
+    /// a state where parameters can have been set since (`instantiated` or
+    /// `initializationMode`, dirty), and the bytes decode once `n_axial` and
+    /// `n_radial` are set back to one of the meshes an instance can have
+    /// been initialized with in the harness (the default 16 × 3, the
+    /// `Init` and cost meshes, and what random sets of one of the two
+    /// reach).
+    fn known_round_trip_bug(bytes: &[u8], layer: &LayerState, err: &str) -> Option<&'static str> {
+        let settable = matches!(
+            layer.fmi_state,
+            FmiState::Instantiated | FmiState::InitializationMode
+        );
+        if !(settable && layer.dirty && err.contains("position values")) {
+            return None;
+        }
+        let at = mesh_offset(bytes)?;
+        let meshes = [
+            (16, 3),
+            (1, 1),
+            (2, 1),
+            (1, 2),
+            (2, 2),
+            (1, 3),
+            (2, 3),
+            (16, 1),
+            (16, 2),
+        ];
+        meshes.into_iter().find_map(|(na, nr): (i32, i32)| {
+            let mut patched = bytes.to_vec();
+            patched[at..at + 4].copy_from_slice(&na.to_le_bytes());
+            patched[at + 4..at + 8].copy_from_slice(&nr.to_le_bytes());
+            fix_checksum(&mut patched);
+            decode_state::<HillFE>(&guid::<HillFE>(), &patched)
+                .is_ok()
+                .then_some(MESH_BUG)
+        })
+    }
+}
+
+/// Offset of `n_axial` (followed by `n_radial`, both i32) in a serialized
+/// `HillMuscleFE` state: the model's bytes start with the law's parameters
+/// (f64s), `L0`, `area`, `activation_dynamics`, `initial_activation`
+/// (`HillFE::serialize`).
+fn mesh_offset(bytes: &[u8]) -> Option<usize> {
+    let (_, model) = split_state(bytes).ok()?;
+    let start = model.as_ptr() as usize - bytes.as_ptr() as usize;
+    let mut input = model;
+    let mut r = ByteReader::new(&mut input);
+    r.f64s().ok()?;
+    r.f64().ok()?;
+    r.f64().ok()?;
+    r.bool().ok()?;
+    r.f64().ok()?;
+    let at = start + model.len() - r.remaining();
+    (at + 8 <= bytes.len()).then_some(at)
+}
+
+harness_tests!(release_only);
+
+// ---------------------------------------------------------------------------
+// Bugs this harness found in HillMuscleFE (not fixed here: src/ is not this
+// test's to change)
+// ---------------------------------------------------------------------------
+
+/// Found by `random_call_sequences` (every `Init`, which sets the mesh in
+/// initialization mode, produced it). Sequence: `fmi2Instantiate`;
+/// `fmi2SetInteger(n_axial = 2)` → `fmi2OK` (the state `instantiated`);
+/// `fmi2GetFMUstate`, `fmi2SerializedFMUstateSize`, `fmi2SerializeFMUstate`
+/// → `fmi2OK`; `fmi2DeSerializeFMUstate` of those bytes. Expected: `fmi2OK`
+/// (the FMU's own serialized state restores, as it does in every other
+/// state; `fmi2SetFMUstate` of the in-memory state works). Actual:
+/// `fmi2Error`, "malformed model state: HillMuscleFE state: 1887 position
+/// values". The same in initialization mode after setting `n_axial` or
+/// `n_radial`, until the next successful initialization (which builds the
+/// new mesh). Suspected cause: `HillFE::deserialize` (src/fmus/hillfe.rs)
+/// rebuilds the discretization with `m.discretization()` from the mesh
+/// parameters it has just read, while `HillFE::serialize` writes the
+/// positions, histories, anchor and trend of the committed muscle, whose
+/// mesh is the one of the last `initialize` — the mesh the committed
+/// muscle was built with is not part of the serialized state. A fix would
+/// serialize the committed discretization's resolution (and geometry:
+/// `L0`, `area`, `axial_grading`, `fibre_layout` set before a
+/// re-initialization have the same mismatch, which goes unnoticed only
+/// because the node count does not change).
+#[test]
+#[ignore = "bug: after n_axial/n_radial is set and before the next initialization, fmi2DeSerializeFMUstate refuses the FMU's own serialized state (HillFE::deserialize builds the mesh from the new parameters, the positions are the committed mesh's)"]
+fn bug_mesh_parameters_set_before_initialization_make_the_state_unserializable() {
+    for in_initialization_mode in [false, true] {
+        let f = Fmu::new(false);
+        unsafe {
+            if in_initialization_mode {
+                assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
+            }
+            let vr = vr_named("n_axial");
+            assert_eq!(api::set_integer::<HillFE>(f.c, &vr, 1, &2), fmi2OK);
+        }
+        let (st, log, _) = round_trip_status(&f);
+        assert_eq!(
+            st,
+            fmi2OK,
+            "initialization mode {in_initialization_mode}: {:?}",
+            log.iter().map(|e| &e.message).collect::<Vec<_>>()
+        );
+    }
+}
+
+/// The known bug's signature is narrow: once the instance is initialized
+/// with the new mesh, its serialized state round-trips again, and a state
+/// whose mesh parameters were changed in the bytes (checksum fixed) without
+/// a pending change is refused and not taken for the known bug.
+#[test]
+#[cfg_attr(
+    debug_assertions,
+    ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
+)]
+fn the_known_mesh_bug_is_recognised_only_where_it_applies() {
+    let f = Fmu::new(false);
+    unsafe {
+        assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
+        let vr = vr_named("n_axial");
+        assert_eq!(api::set_integer::<HillFE>(f.c, &vr, 1, &2), fmi2OK);
+    }
+    let pending = f.state_bytes().unwrap();
+    let (layer, _) = split_state(&pending).unwrap();
+    match decode_state::<HillFE>(&guid::<HillFE>(), &pending) {
+        // Fixed: then nothing is left to recognise.
+        Ok(_) => {}
+        Err(e) => assert_eq!(
+            Fe::known_round_trip_bug(&pending, &layer, &e),
+            Some(MESH_BUG),
+            "{e}"
+        ),
+    }
+    unsafe {
+        assert_eq!(api::exit_initialization_mode::<HillFE>(f.c), fmi2OK);
+    }
+    let (st, log, bytes) = round_trip_status(&f);
+    assert_eq!(st, fmi2OK, "{log:?}");
+    // A corrupt mesh (1 × 1 in the bytes of a 2 × 1 state): refused, and
+    // not the known bug (the state is not one where the mesh can be set).
+    let at = mesh_offset(&bytes).unwrap();
+    let mut corrupt = bytes.clone();
+    corrupt[at..at + 4].copy_from_slice(&1i32.to_le_bytes());
+    fix_checksum(&mut corrupt);
+    let e = decode_state::<HillFE>(&guid::<HillFE>(), &corrupt)
+        .err()
+        .expect("a state with the wrong mesh decodes");
+    let (layer, _) = split_state(&corrupt).unwrap();
+    assert_eq!(layer.fmi_state, FmiState::StepComplete);
+    assert_eq!(Fe::known_round_trip_bug(&corrupt, &layer, &e), None);
+    let mut s: fmi2FMUstate = null_mut();
+    let d = unsafe {
+        api::deserialize_fmu_state::<HillFE>(
+            f.c,
+            corrupt.as_ptr() as *const fmi2Byte,
+            corrupt.len(),
+            &mut s,
+        )
+    };
+    assert_eq!(d, fmi2Error);
+}
+
+/// Found by `every_parameter_at_either_bound_steps_and_round_trips` (`L0` =
+/// 1e-4 m and `area` = 1 m², both declared valid, refused at
+/// initialization). Sequence, on the default 16 × 3 mesh: `fmi2Instantiate`;
+/// `fmi2SetReal(L0 = 1e-3)` (or `area = 1`) → `fmi2OK`;
+/// `fmi2EnterInitializationMode`; `fmi2ExitInitializationMode`, with
+/// `length` = `L0` (its default) and activation 0: the specimen at rest,
+/// whose reference configuration is the exact, stress-free equilibrium.
+/// Expected: `fmi2OK`, force 0. Actual: `fmi2Error`, "initialization
+/// failed: initialization: no isometric equilibrium at length 0.001 m and
+/// activation level 0 in up to 64 increments: Newton: no decrease along the
+/// Newton direction (correction 1.2e-17 m, residual 2.2e-11 N)" (area = 1:
+/// correction 1.0e-15 m, residual 1.7e-7 N). On the 2 × 1 mesh already
+/// `area` = 0.01 m² (L0 = 0.05 m) and `L0` = 1e-3 m fail; `L0` = 5e-3 m passes. Suspected
+/// cause: the Newton convergence test (`Discretization::converged`,
+/// src/fe/newton.rs, the rounding-level test `max_abs(dx) <=
+/// ROUNDING_CORRECTION * self.l0` and `tolerance * self.l0`) measures
+/// corrections against L0, while the node coordinates — and so the
+/// round-off left in the residual and its corrections — scale with the
+/// specimen's size, here its radius (7.3 mm for L0 = 1 mm, 0.56 m for
+/// area = 1 m²), not its length; a round-off-level residual then neither
+/// passes the test nor decreases along the line search.
+#[test]
+#[ignore = "bug: a specimen much wider than long (L0 = 1e-3 m, or area = 1 m2) is refused at rest by fmi2ExitInitializationMode: Newton's rounding-level test is scaled by L0, not by the coordinates (src/fe/newton.rs, converged)"]
+fn bug_a_specimen_much_wider_than_long_is_refused_at_rest() {
+    for (name, value) in [("L0", 1e-3), ("area", 1.0)] {
+        let f = Fmu::new(false);
+        let vr = vr_named(name);
+        let force = vr_named("force");
+        let mut out = f64::NAN;
+        let st = unsafe {
+            assert_eq!(api::set_real::<HillFE>(f.c, &vr, 1, &value), fmi2OK);
+            assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
+            let st = api::exit_initialization_mode::<HillFE>(f.c);
+            api::get_real::<HillFE>(f.c, &force, 1, &mut out);
+            st
+        };
+        let log: Vec<String> = f.book.take().into_iter().map(|e| e.message).collect();
+        assert_eq!(st, fmi2OK, "{name} = {value}: {log:?}");
+        assert!(out.abs() < 1e-9, "{name} = {value}: force {out} at rest");
+    }
+}
+
+/// Found by `every_function_in_every_state_with_legal_and_illegal_arguments`
+/// (and by `random_call_sequences`). A bug of the FMI layer, reachable with
+/// this model because it refuses the derivatives of some outputs.
+/// Sequence: `fmi2Instantiate`; `fmi2EnterInitializationMode`;
+/// `fmi2SetReal(activation = 0.5)` (a value set: the initial values are to
+/// be computed again); `fmi2GetDirectionalDerivative(unknown =
+/// cauchy_stress, known = length)`. Expected: `fmi2Error` ("HillMuscleFE
+/// provides directional derivatives of force, stress and activation_level
+/// only") and the instance unchanged, like every refused call (the
+/// layer's contract: a rejected call changes nothing). Actual: `fmi2Error`,
+/// but the initial values have been computed and kept — the serialized
+/// state differs (dirty flag cleared, the model initialized), and with
+/// debug logging the call logs "fmi2GetDirectionalDerivative: initial
+/// values computed" before its error, while the next `fmi2GetReal` of an
+/// output no longer logs it. Suspected cause: `get_directional_derivative`
+/// (src/fmi2/api.rs) calls `ensure_initialized` before the model's
+/// `partial_derivative`s, which can still fail, and does not restore the
+/// model and the dirty flag when one does.
+#[test]
+#[ignore = "bug: a refused fmi2GetDirectionalDerivative in initialization mode keeps the initial values it computed (src/fmi2/api.rs, get_directional_derivative: ensure_initialized before the model's partial_derivative can fail)"]
+fn bug_refused_directional_derivative_computes_the_initial_values() {
+    let f = Fmu::new(false);
+    let (unknown, known) = (vr_named("cauchy_stress"), vr_named("length"));
+    let mut dv = f64::NAN;
+    unsafe {
+        assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
+        let a = vr_named("activation");
+        assert_eq!(api::set_real::<HillFE>(f.c, &a, 1, &0.5), fmi2OK);
+    }
+    let before = f.state_bytes().unwrap();
+    f.book.clear();
+    let st = unsafe {
+        api::get_directional_derivative::<HillFE>(f.c, &unknown, 1, &known, 1, &1.0, &mut dv)
+    };
+    let log: Vec<String> = f.book.take().into_iter().map(|e| e.message).collect();
+    assert_eq!(st, fmi2Error, "{log:?}");
+    assert!(dv.is_nan(), "dvUnknown written: {dv}");
+    assert!(
+        f.state_bytes().unwrap() == before,
+        "the refused call changed the instance: {log:?}"
+    );
+}
+
+/// The bytes of a serialized state with its model's bytes replaced by
+/// `model` (length prefixes and checksum made consistent).
+fn with_model_bytes(bytes: &[u8], model: &[u8]) -> Vec<u8> {
+    let (_, old) = split_state(bytes).unwrap();
+    let start = old.as_ptr() as usize - bytes.as_ptr() as usize;
+    let mut b = bytes[..start].to_vec();
+    b[start - 8..start].copy_from_slice(&(model.len() as u64).to_le_bytes());
+    b.extend_from_slice(model);
+    b.extend_from_slice(&[0; 8]);
+    let body = (b.len() - 28) as u64;
+    b[12..20].copy_from_slice(&body.to_le_bytes());
+    fix_checksum(&mut b);
+    b
+}
+
+/// Found while writing this harness (reading `HillFE::deserialize` for
+/// what `StepError::Error` needs), confirmed here; the random mutations do
+/// not reach it (they would have to shorten the model's bytes consistently).
+/// Sequence: a `HillMuscleFE` state in `stepComplete`, serialized, with its
+/// model bytes cut after the "has a muscle" flag, set to false (length
+/// prefixes and checksum recomputed: a well-formed state, but one
+/// `HillFE::serialize` never writes — every instance has a muscle, since
+/// `HillFE::new` initializes); `fmi2DeSerializeFMUstate`, `fmi2SetFMUstate`,
+/// `fmi2DoStep`. Expected: the state refused at `fmi2DeSerializeFMUstate`
+/// (as the layer refuses a NaN time, and the model a NaN output), or a
+/// step that completes or is discarded. Actual: accepted, and the step
+/// returns `fmi2Error` ("the model is not initialized") and puts the
+/// instance into the FMI `error` state (`fmi2GetDirectionalDerivative`
+/// too is refused). Suspected cause: `HillFE::deserialize`
+/// (src/fmus/hillfe.rs, `if r.bool()? { ... }` with no `else`) accepts a
+/// missing muscle instead of refusing it.
+#[test]
+#[ignore = "bug: HillFE::deserialize accepts a state without a muscle (which HillFE::serialize never writes); its first fmi2DoStep is an fmi2Error that enters the error state"]
+fn bug_a_state_without_a_muscle_deserializes_and_cannot_step() {
+    let f = Fmu::new(false);
+    let bytes = unsafe {
+        assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
+        assert_eq!(api::exit_initialization_mode::<HillFE>(f.c), fmi2OK);
+        f.state_bytes().unwrap()
+    };
+    let (_, model) = split_state(&bytes).unwrap();
+    // HillFE::serialize: the parameters, L0, area, activation_dynamics,
+    // initial_activation, n_axial, n_radial, axial_grading, fibre_layout,
+    // command, length, the rates, the level, the decay, the outputs, the
+    // Newton iterations; then the flag.
+    let mut input = model;
+    let mut r = ByteReader::new(&mut input);
+    let flag_at = (|| -> Result<usize, hill_muscle::fmi2::bytes::ByteError> {
+        r.f64s()?;
+        r.f64()?;
+        r.f64()?;
+        r.bool()?;
+        r.f64()?;
+        r.i32()?;
+        r.i32()?;
+        r.f64()?;
+        r.i32()?;
+        r.f64()?;
+        r.f64s()?;
+        r.f64()?;
+        r.f64()?;
+        r.f64()?;
+        r.f64s()?;
+        r.f64s()?;
+        r.i32()?;
+        Ok(model.len() - r.remaining())
+    })()
+    .unwrap();
+    assert_eq!(model[flag_at], 1, "the serialized layout changed");
+    let mut crafted = model[..flag_at].to_vec();
+    crafted.push(0);
+    let b = with_model_bytes(&bytes, &crafted);
+    let mut s: fmi2FMUstate = null_mut();
+    let d = unsafe {
+        api::deserialize_fmu_state::<HillFE>(f.c, b.as_ptr() as *const fmi2Byte, b.len(), &mut s)
+    };
+    f.book.clear();
+    if d != fmi2OK {
+        return; // refused: fixed
+    }
+    let step = unsafe {
+        assert_eq!(api::set_fmu_state::<HillFE>(f.c, s), fmi2OK);
+        api::do_step::<HillFE>(f.c, 0.0, 1e-3, 0)
+    };
+    let log: Vec<String> = f.book.take().into_iter().map(|e| e.message).collect();
+    assert_ne!(step, fmi2Error, "{log:?}");
+}
