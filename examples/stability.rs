@@ -8,7 +8,8 @@
 //! cargo run --release --example stability -- --baseline docs/stability-before.csv
 //! ```
 //!
-//! Options: `--subset` (the CI subset), `--out DIR` (default `docs`),
+//! Options: `--subset` (the CI subset), `--model NAME` (one model only),
+//! `--out DIR` (default `docs`),
 //! `--baseline CSV` (a CSV of an earlier run: adds a before/after section),
 //! `--csv-only`. `STABILITY_THREADS` sets the worker threads.
 
@@ -26,6 +27,7 @@ fn main() {
     let mut out = PathBuf::from("docs");
     let mut baseline: Option<PathBuf> = None;
     let mut csv_only = false;
+    let mut only: Option<String> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -33,6 +35,7 @@ fn main() {
             "--out" => out = args.next().expect("--out DIR").into(),
             "--baseline" => baseline = Some(args.next().expect("--baseline CSV").into()),
             "--csv-only" => csv_only = true,
+            "--model" => only = Some(args.next().expect("--model NAME")),
             other => {
                 eprintln!("unknown argument {other}");
                 std::process::exit(2);
@@ -45,6 +48,7 @@ fn main() {
         .iter()
         .enumerate()
         .filter(|(_, entry)| !subset || entry.in_ci_subset)
+        .filter(|(_, entry)| only.as_deref().map_or(true, |m| m == entry.name))
         .flat_map(|(e, entry)| {
             cells
                 .iter()

@@ -28,18 +28,20 @@
 //!
 //! # Solver
 //!
-//! Newton's method with the consistent tangent of the law (including the
-//! CE–SEE history's dλs/dλ̄f, [`crate::law::stress::LawPoint`]) assembled
-//! into a sparse matrix ([`crate::fe::assembly`]) and solved by sparse
-//! Cholesky (LU when the tangent is indefinite), with a backtracking line
-//! search on the residual norm (a trial that inverts an element is
-//! rejected). Start: the linearised response from the last equilibrium
-//! ([`Discretization::step`]). Converged when the largest free
-//! residual is below [`RESIDUAL_TOLERANCE`] times the force scale, or the
-//! Newton correction below [`INCREMENT_TOLERANCE`] · L0. When a step does not
-//! converge it is split into 2, 4, … [`MAX_SUBSTEPS`] substeps (length
-//! linear in time, activation level exact); if that fails too, the step is
-//! refused and nothing has changed.
+//! Each (sub)step is solved by [`crate::fe::newton`]: Newton's method with
+//! the consistent tangent of the law (including the CE–SEE history's
+//! dλs/dλ̄f, [`crate::law::stress::LawPoint`]) assembled into a sparse
+//! matrix ([`crate::fe::assembly`]) and factorised by sparse Cholesky (LU
+//! when the tangent is indefinite), the factorisation reused across
+//! iterations and steps while it contracts, from an extrapolating predictor,
+//! with an affine-covariant damping and convergence test. When a step does
+//! not converge, [`Muscle::advance`] retries it by continuation in its inputs
+//! (same physics, [`Discretization::solve_step_continued`]) and then splits
+//! it into 2, 4, … [`MAX_SUBSTEPS`] substeps (length linear in time,
+//! activation level exact); if that fails too, the step is refused and
+//! nothing has changed. Initialization ([`Muscle::isometric`]) ramps the
+//! length, then the activation level, and relaxes to the isometric
+//! equilibrium where the ramp fails.
 
 use std::sync::Arc;
 
@@ -51,7 +53,7 @@ use crate::fe::mesh::{
     revolve_graded, FibreLayout, Fusiform, Mesh, Resolution, Section, MAX_AXIAL_GRADING,
 };
 pub use crate::fe::newton::{
-    Increment, Solution, Solved, StepInput, TangentCache, Trend, RESIDUAL_TOLERANCE,
+    Budget, Increment, Solution, Solved, StepInput, TangentCache, Trend, RESIDUAL_TOLERANCE,
 };
 use crate::law::hill_fibre::FibreStress;
 use crate::law::stress::IsochoricStress;
@@ -60,6 +62,15 @@ use crate::law::{FibreHistory, FibreRate, LawPoint, Params};
 
 /// Largest number of substeps a step is split into before it is refused.
 pub const MAX_SUBSTEPS: usize = 64;
+/// Substep counts up to which a failed (sub)step is retried by continuation
+/// ([`Discretization::solve_step_continued`]) before it is split further.
+const CONTINUED_SUBSTEPS: usize = 2;
+/// Steps of 1 ms over which [`Muscle::isometric`]'s relaxation raises the
+/// activation level before holding it.
+const RELAX_RAMP: usize = 8;
+/// Increments of the isometric activation ramp at initialization before it
+/// turns to relaxation ([`Muscle::isometric`]).
+const ACTIVATION_RAMP: usize = 4;
 
 /// How the end faces are held (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,6 +114,8 @@ pub struct Discretization {
     moved_axial: Vec<usize>,
     /// Mean reference cross-section V/L0 of the mesh.
     mean_area: f64,
+    /// The diagonal of the reference bounding box ([`Discretization::size`]).
+    size: f64,
     /// The nominal mean cross-section the geometry was built for (V0/L0 of
     /// the exact profile; the mesh's differs by its volume error).
     pub area: f64,
@@ -224,6 +237,12 @@ impl Discretization {
         };
         let l0 = mesh.length;
         let mean_area = mesh.volume() / l0;
+        let (mut lo, mut hi) = (mesh.nodes[0], mesh.nodes[0]);
+        for n in &mesh.nodes {
+            lo = lo.inf(n);
+            hi = hi.sup(n);
+        }
+        let size = (hi - lo).norm();
         Ok(Discretization {
             l0,
             ends,
@@ -234,6 +253,7 @@ impl Discretization {
             pattern,
             moved_axial,
             mean_area,
+            size,
             area: mean_area,
             fibres: FibreLayout::Axial,
             volumetric: Volumetric::NodalAverage,
@@ -641,6 +661,13 @@ impl Discretization {
         (v, w, kd)
     }
 
+    /// The specimen's size: the diagonal of its reference bounding box (the
+    /// length scale of the solver's position tests; L0 alone is not one for
+    /// a specimen wider than long).
+    pub fn size(&self) -> f64 {
+        self.size
+    }
+
     /// Mean reference cross-section V/L0 of the mesh.
     pub fn mean_area(&self) -> f64 {
         self.mean_area
@@ -733,43 +760,74 @@ impl Muscle {
     }
 
     /// Isometric equilibrium at `length` and activation level `activation`
-    /// (initialization): length and level approached together in 1, 2, 4, …
-    /// increments from the rest state (path-independent: the isometric fibre
-    /// has no rate, so the increments only guide Newton).
+    /// (initialization, MODEL_NOTES "Co-simulation conventions"): the
+    /// passive equilibrium at `length` (`Self::isometric_ramp` from rest),
+    /// then, for an active muscle, the level raised to `activation` by the
+    /// same ramp at that length; when that fails, by relaxation
+    /// (`Self::relax_isometric`).
     pub fn isometric(
         disc: Arc<Discretization>,
         p: &Params,
         length: f64,
         activation: f64,
     ) -> Result<(Muscle, Solution), String> {
-        let rest = Muscle::at_rest(disc.clone());
+        let rest = Muscle::at_rest(disc);
+        let (passive, s) = rest.isometric_ramp(p, length, 0.0, 0.0, MAX_SUBSTEPS)?;
+        if activation == 0.0 {
+            return Ok((passive, s));
+        }
+        match passive.isometric_ramp(p, length, 0.0, activation, ACTIVATION_RAMP) {
+            Ok(done) => Ok(done),
+            Err(ramp) => passive.relax_isometric(p, activation).map_err(|relax| {
+                format!("{ramp}; relaxing to it at the activation level held: {relax}")
+            }),
+        }
+    }
+
+    /// From this isometric equilibrium (at activation level `from`), the
+    /// isometric equilibrium at `length` and activation level `activation`:
+    /// length and level approached together in 1, 2, 4, … `max_increments`
+    /// increments (path-independent: the isometric fibre has no rate, so the
+    /// increments only guide Newton).
+    fn isometric_ramp(
+        &self,
+        p: &Params,
+        length: f64,
+        from: f64,
+        activation: f64,
+        max_increments: usize,
+    ) -> Result<(Muscle, Solution), String> {
+        let disc = &self.disc;
+        let a0 = from;
         let mut last_error = String::new();
         let mut n = 1;
-        while n <= MAX_SUBSTEPS {
-            let mut x = rest.x.clone();
+        while n <= max_increments {
+            let mut x = self.x.clone();
             let mut cache = None;
             let mut result = None;
-            let mut iterations = 0;
-            let mut factorizations = 0;
-            let mut residuals = 0;
+            let (mut iterations, mut factorizations, mut residuals) = (0, 0, 0);
             for i in 1..=n {
+                // Each increment is a step's worth of work.
+                let budget = Budget::for_step(disc);
+                let at = |i: usize| (i as f64 / n as f64, (i - 1) as f64 / n as f64);
+                let (u, u0) = at(i);
                 let input = StepInput {
                     x: &x,
-                    length_start: rest.length + (length - rest.length) * (i - 1) as f64 / n as f64,
-                    length: rest.length + (length - rest.length) * i as f64 / n as f64,
-                    // Length and activation level ramped together from rest.
-                    activation_start: activation * (i - 1) as f64 / n as f64,
-                    activation: activation * i as f64 / n as f64,
-                    start: &rest.history,
+                    length_start: self.length + (length - self.length) * u0,
+                    length: self.length + (length - self.length) * u,
+                    activation_start: a0 + (activation - a0) * u0,
+                    activation: a0 + (activation - a0) * u,
+                    start: &self.history,
                     rate: FibreRate::Isometric,
                     trend: None,
-                    tolerance: rest.tolerance,
+                    tolerance: self.tolerance,
+                    budget: &budget,
                 };
                 match disc.solve_step(p, &input, cache.take()) {
                     Ok(s) => {
                         iterations += s.solution.iterations;
-                        factorizations += s.solution.factorizations;
                         residuals += s.solution.residuals;
+                        factorizations += s.solution.factorizations;
                         x = s.solution.x.clone();
                         cache = Some(s.cache);
                         result = Some(s.solution);
@@ -785,18 +843,18 @@ impl Muscle {
                 let history = s.evaluation.elements.iter().map(|e| e.history).collect();
                 return Ok((
                     Muscle {
-                        disc,
+                        disc: disc.clone(),
                         x: s.x.clone(),
                         history,
                         length,
                         tangent: cache,
                         trend: Trend::default(),
-                        tolerance: rest.tolerance,
+                        tolerance: self.tolerance,
                     },
                     Solution {
                         iterations,
-                        factorizations,
                         residuals,
+                        factorizations,
                         ..s
                     },
                 ));
@@ -804,8 +862,70 @@ impl Muscle {
             n *= 2;
         }
         Err(format!(
-            "no isometric equilibrium at length {length} m in up to {MAX_SUBSTEPS} increments: {last_error}"
+            "no isometric equilibrium at length {length} m and activation level {activation} in up to {max_increments} increments: {last_error}"
         ))
+    }
+
+    /// The isometric equilibrium at this length and activation level
+    /// `activation` as the steady state of the rate-dependent muscle held at
+    /// that length and level (from this state): the level raised over
+    /// `RELAX_RAMP` steps of 1 ms, then held in steps of the CE–SEE law with
+    /// growing length h = 1 ms, 2 ms, 4 ms, … until the contractile elements
+    /// stop moving (every |Δλm| below 1e-12), then the isometric solve from
+    /// there. In steady state λ̇m = 0, f_v = 1 and σ_s = σ0 a f_λ: the
+    /// isometric equilibrium. Why: with the fibres of the clamped specimen
+    /// partly on the descending limb of f_λ (negative active stiffness), the
+    /// rate-free isometric problem can defeat Newton's method from the
+    /// passive state, while the force-velocity relation regularises the
+    /// rate-dependent one.
+    fn relax_isometric(&self, p: &Params, activation: f64) -> Result<(Muscle, Solution), String> {
+        let mut m = self.clone();
+        let mut h = 1e-3;
+        let mut steps = 0;
+        // The level is raised over the first RELAX_RAMP steps (pseudo-time:
+        // only the steady state counts), then held while h doubles.
+        while h <= 1e6 {
+            let (a0, a1) = if steps < RELAX_RAMP {
+                let at = |k: usize| activation * k as f64 / RELAX_RAMP as f64;
+                (at(steps), at(steps + 1))
+            } else {
+                (activation, activation)
+            };
+            let r = m.advance(p, m.length, h, &|tau| a0 + (a1 - a0) * tau / h)?;
+            steps += 1;
+            let moved = r
+                .solution
+                .evaluation
+                .elements
+                .iter()
+                .zip(&m.history)
+                .fold(0.0f64, |d, (e, old)| {
+                    d.max((e.history.lambda_m - old.lambda_m).abs())
+                });
+            m = r.muscle;
+            if steps < RELAX_RAMP {
+                continue;
+            }
+            if moved <= 1e-12 {
+                break;
+            }
+            h *= 2.0;
+        }
+        // The exact isometric equilibrium from the relaxed state (a level
+        // ramp of one increment: the level is already there).
+        let relaxed = Muscle {
+            tangent: Some(Arc::new(TangentCache::new(crate::fe::newton::Anchor {
+                x: m.x.clone(),
+                activation,
+                start: m.history.clone(),
+                rate: FibreRate::Isometric,
+            }))),
+            trend: Trend::default(),
+            ..m
+        };
+        relaxed
+            .isometric_ramp(p, relaxed.length, activation, activation, 1)
+            .map_err(|e| format!("after {steps} relaxation steps: {e}"))
     }
 
     /// Advance over a step of length `h` to muscle length `length`, the
@@ -820,6 +940,7 @@ impl Muscle {
         activation: &dyn Fn(f64) -> f64,
     ) -> Result<Advance, String> {
         let disc = &self.disc;
+        let budget = Budget::for_step(disc);
         let mut last_error = String::new();
         let mut n = 1;
         while n <= MAX_SUBSTEPS {
@@ -849,8 +970,17 @@ impl Muscle {
                     rate,
                     trend: Some(&trend),
                     tolerance: self.tolerance,
+                    budget: &budget,
                 };
-                match disc.solve_step(p, &input, cache.take()) {
+                // Continuation (a path in the inputs, same physics) on the
+                // whole step and its halves; finer substeps in time without
+                // it, so that a hopeless step ends in bounded work.
+                let solved = if n <= CONTINUED_SUBSTEPS {
+                    disc.solve_step_continued(p, &input, cache.take())
+                } else {
+                    disc.solve_step(p, &input, cache.take())
+                };
+                match solved {
                     Ok(Solved {
                         solution: s,
                         cache: c,

@@ -46,12 +46,18 @@ use crate::law::{FibreHistory, FibreRate, Params};
 pub const MAX_NEWTON_ITERATIONS: usize = 25;
 /// Default tolerance of the convergence test ([`StepInput::tolerance`],
 /// `Discretization::converged`): the solution's error estimate moves no
-/// node by more than this × L0 and the force by no more than this × the
+/// node by more than this × the specimen's size and the force by no more than this × the
 /// larger of |F| and σ0 A.
 pub const RESIDUAL_TOLERANCE: f64 = 1e-10;
-/// A correction below this × L0 is at the rounding level of positions of
-/// order L0 (8 ulps): converged whatever the contraction.
+/// A correction below this × the specimen's size is at the rounding level of
+/// its positions (8 ulps): converged whatever the contraction.
 pub const ROUNDING_CORRECTION: f64 = 8.0 * f64::EPSILON;
+/// The factorisations one step of the default mesh may spend, over all its
+/// attempts ([`Budget`]).
+pub const BUDGET_FACTORIZATIONS: usize = 400;
+/// Largest number of parts [`Discretization::solve_step_continued`] splits
+/// a step's input change into.
+pub const MAX_CONTINUATION: usize = 8;
 /// Smallest line-search step before a Newton iteration counts as failed.
 const MIN_LINE_SEARCH: f64 = 1.0 / 256.0;
 /// A reused tangent whose iteration contracts the correction by less than
@@ -243,6 +249,45 @@ pub struct StepInput<'a> {
     pub trend: Option<&'a Trend>,
     /// The convergence test's tolerance ([`RESIDUAL_TOLERANCE`]).
     pub tolerance: f64,
+    /// The work the whole step may still spend.
+    pub budget: &'a Budget,
+}
+
+/// A bound on the work of one step, shared by all its attempts
+/// (substeps, continuation, fallbacks): so that a step the solver cannot do
+/// ends in an error after bounded work rather than after an unbounded
+/// search. Counted, not timed, so the outcome is deterministic.
+#[derive(Debug)]
+pub struct Budget {
+    solves: std::cell::Cell<usize>,
+    factorizations: std::cell::Cell<usize>,
+}
+
+impl Budget {
+    /// Work allowed for one step of `disc`: [`BUDGET_FACTORIZATIONS`]
+    /// tangent factorisations and ten linear solves per factorisation on a
+    /// mesh the size of the default one (1,887 dofs: about 4 s at most), more
+    /// on smaller meshes in proportion to the factorisation's cost
+    /// (∝ dofs^1.5 for these slender meshes), at most 50 times more.
+    pub fn for_step(disc: &Discretization) -> Budget {
+        let dofs = 3.0 * disc.n_nodes() as f64;
+        let scale = (1887.0 / dofs).powf(1.5).clamp(1.0, 50.0);
+        let factorizations = (BUDGET_FACTORIZATIONS as f64 * scale) as usize;
+        Budget {
+            solves: std::cell::Cell::new(10 * factorizations),
+            factorizations: std::cell::Cell::new(factorizations),
+        }
+    }
+
+    fn charge(cell: &std::cell::Cell<usize>, what: &str) -> Result<(), String> {
+        match cell.get() {
+            0 => Err(format!("the step's work limit is spent ({what})")),
+            n => {
+                cell.set(n - 1);
+                Ok(())
+            }
+        }
+    }
 }
 
 /// A solved (sub)step: the equilibrium and the tangent to use next.
@@ -253,8 +298,8 @@ pub struct Solved {
 
 impl Discretization {
     /// Solve one (sub)step (module docs): with a trend and a tangent to
-    /// reuse, the extrapolating predictor and [`Self::iterate`]; else, or
-    /// when that fails, [`Self::robust`].
+    /// reuse, the extrapolating predictor and `Self::iterate`; else, or
+    /// when that fails, `Self::robust`.
     pub fn solve_step(
         &self,
         p: &Params,
@@ -280,9 +325,84 @@ impl Discretization {
         })
     }
 
+    /// [`Self::solve_step`], and when it fails, continuation: the same step
+    /// (same start history, same rate mode — the same backward-Euler step of
+    /// the CE–SEE law) solved as a sequence of 2, 4, … [`MAX_CONTINUATION`]
+    /// problems whose end length and activation level go linearly from the
+    /// step's start values to its end values, each solution the start of the
+    /// next. The equilibrium at the end values does not depend on that path
+    /// (the step map is a function of the end state and the start history):
+    /// the path only guides Newton, e.g. across an activation jump, which
+    /// substeps in time cannot split when S·h ≫ 1.
+    pub fn solve_step_continued(
+        &self,
+        p: &Params,
+        input: &StepInput<'_>,
+        cache: Option<Arc<TangentCache>>,
+    ) -> Result<Solved, String> {
+        let first = match self.solve_step(p, input, cache) {
+            Ok(s) => return Ok(s),
+            Err(e) => e,
+        };
+        let mut last = String::new();
+        let mut m = 2;
+        while m <= MAX_CONTINUATION {
+            let mut x = input.x.to_vec();
+            let mut cache = None;
+            let mut counts = (0, 0, 0);
+            let mut solved = None;
+            for i in 1..=m {
+                let (u0, u) = ((i - 1) as f64 / m as f64, i as f64 / m as f64);
+                let along = |a: f64, b: f64, t: f64| a + (b - a) * t;
+                let part = StepInput {
+                    x: &x,
+                    length_start: along(input.length_start, input.length, u0),
+                    length: along(input.length_start, input.length, u),
+                    activation_start: along(input.activation_start, input.activation, u0),
+                    activation: along(input.activation_start, input.activation, u),
+                    start: input.start,
+                    rate: input.rate,
+                    trend: None,
+                    tolerance: input.tolerance,
+                    budget: input.budget,
+                };
+                match self.solve_step(p, &part, cache.take()) {
+                    Ok(s) => {
+                        counts.0 += s.solution.iterations;
+                        counts.1 += s.solution.residuals;
+                        counts.2 += s.solution.factorizations;
+                        x = s.solution.x.clone();
+                        cache = Some(s.cache.clone());
+                        solved = Some(s);
+                    }
+                    Err(e) => {
+                        last = e;
+                        solved = None;
+                        break;
+                    }
+                }
+            }
+            if let Some(s) = solved {
+                return Ok(Solved {
+                    solution: Solution {
+                        iterations: counts.0,
+                        residuals: counts.1,
+                        factorizations: counts.2,
+                        ..s.solution
+                    },
+                    cache: s.cache,
+                });
+            }
+            m *= 2;
+        }
+        Err(format!(
+            "{first}; by continuation in {MAX_CONTINUATION} parts: {last}"
+        ))
+    }
+
     /// The fast path: the last steps' increments extrapolated, corrected to
     /// first order for the input change they do not predict with the reused
-    /// tangent's sensitivities (module docs), then [`Self::iterate`].
+    /// tangent's sensitivities (module docs), then `Self::iterate`.
     fn extrapolated(
         &self,
         p: &Params,
@@ -303,7 +423,7 @@ impl Discretization {
         }
         let cl = input.length - input.length_start - pl;
         let ca = input.activation - input.activation_start - pa;
-        let t = spent.tangent(&cache, self, p)?;
+        let t = spent.tangent(&cache, self, p, input.budget)?;
         for ((xi, v), w) in x.iter_mut().zip(&t.d_length).zip(&t.d_activation) {
             *xi += v * cl + w * ca;
         }
@@ -376,10 +496,10 @@ impl Discretization {
         if mode == Mode::Fresh {
             cache = form(&x);
         }
-        let mut t = spent.tangent(&cache, self, p)?;
+        let mut t = spent.tangent(&cache, self, p, input.budget)?;
         let mut dx = self.free_negated(&ev.forces);
         t.factor.solve_in_place(&mut dx);
-        spent.solves += 1;
+        spent.solve(input.budget)?;
         // The contraction measured in this step, whether the tangent was
         // formed at the current iterate, how often it has been reused.
         let mut theta: Option<f64> = None;
@@ -410,11 +530,11 @@ impl Discretization {
             iterations += 1;
             if (refresh || mode == Mode::Fresh) && !fresh {
                 cache = form(&x);
-                t = spent.tangent(&cache, self, p)?;
+                t = spent.tangent(&cache, self, p, input.budget)?;
                 let previous = norm2(&dx);
                 dx = self.free_negated(&ev.forces);
                 t.factor.solve_in_place(&mut dx);
-                spent.solves += 1;
+                spent.solve(input.budget)?;
                 // Across a tangent change the contraction is the ratio of
                 // the new correction to the last one.
                 theta = theta.map(|_| norm2(&dx) / previous);
@@ -439,7 +559,7 @@ impl Discretization {
                     if decreased {
                         let mut next = self.free_negated(&e.forces);
                         t.factor.solve_in_place(&mut next);
-                        spent.solves += 1;
+                        spent.solve(input.budget)?;
                         let th = norm2(&next) / norm;
                         if merit == Merit::Residual || th <= 1.0 - 0.25 * alpha {
                             break Some((trial, e, next, th));
@@ -476,7 +596,8 @@ impl Discretization {
     /// (module docs): Δx is at the rounding level of the positions
     /// ([`ROUNDING_CORRECTION`]), or the tangent's contraction θ ≤ 1/2 has been measured in
     /// this step, so that the remaining error is about ‖Δx‖/(1 − θ), and by
-    /// that estimate no node is more than tol · L0 from the solution and the
+    /// that estimate no node is more than tol · ℓ from the solution (ℓ the
+    /// specimen's size, [`Discretization::size`]) and the
     /// reaction force not more than tol · max(|F|, σ0 A) from its value
     /// there (its change (K̃ δ)·Δx: K̃ δ is the tangent's moved-face row
     /// sum; σ0 A is the muscle's maximum isometric force on its mean
@@ -492,7 +613,7 @@ impl Discretization {
     ) -> bool {
         // A correction at the rounding level of the positions (a few ulps):
         // nothing representable is left to correct.
-        if max_abs(dx) <= ROUNDING_CORRECTION * self.l0 {
+        if max_abs(dx) <= ROUNDING_CORRECTION * self.size() {
             return true;
         }
         match theta {
@@ -504,7 +625,7 @@ impl Discretization {
                     .abs()
                     .max(p.sigma0 * self.mean_area());
                 amplification * df.abs() <= tolerance * scale
-                    && amplification * max_abs(dx) <= tolerance * self.l0
+                    && amplification * max_abs(dx) <= tolerance * self.size()
             }
             _ => false,
         }
@@ -517,7 +638,7 @@ impl Discretization {
     /// K_ff⁻¹ R_f(x_n). (Moving the face alone would start from pressures of
     /// order (ΔL/L)·2/D next to it; the tangent at the new level but old
     /// positions is indefinite when the level rises: fibre tension not yet
-    /// balanced by pressure.) From it, [`Self::iterate`] with the natural
+    /// balanced by pressure.) From it, `Self::iterate` with the natural
     /// test, and when that fails the damped Newton method (the solver before
     /// tangent reuse).
     fn robust(
@@ -533,12 +654,12 @@ impl Discretization {
             start: start.to_vec(),
             rate,
         }));
-        let t = spent.tangent(&cache, self, p)?;
+        let t = spent.tangent(&cache, self, p, input.budget)?;
         let r = self.evaluate(p, input.x, activation, start, rate, false)?;
         spent.residuals += 1;
         let mut dx = self.free_negated(&r.forces);
         t.factor.solve_in_place(&mut dx);
-        spent.solves += 1;
+        spent.solve(input.budget)?;
         let dl = input.length - input.length_start;
         let mut x = input.x.to_vec();
         for ((xi, d), v) in x.iter_mut().zip(&dx).zip(&t.d_length) {
@@ -605,18 +726,27 @@ struct Counts {
 }
 
 impl Counts {
-    /// The tangent of `cache`, counting its factorisation when it is formed
-    /// here.
+    /// The tangent of `cache`, counting (and charging to `budget`) its
+    /// factorisation when it is formed here.
     fn tangent<'c>(
         &mut self,
         cache: &'c TangentCache,
         disc: &Discretization,
         p: &Params,
+        budget: &Budget,
     ) -> Result<&'c Tangent, String> {
         if cache.built.get().is_none() {
+            Budget::charge(&budget.factorizations, "factorisations")?;
             self.factorizations += 1;
         }
         cache.tangent(disc, p)
+    }
+
+    /// Count (and charge to `budget`) a linear solve.
+    fn solve(&mut self, budget: &Budget) -> Result<(), String> {
+        Budget::charge(&budget.solves, "solves")?;
+        self.solves += 1;
+        Ok(())
     }
 }
 
@@ -709,6 +839,51 @@ mod tests {
             pull_factorizations < pull / 4,
             "{pull_factorizations} factorisations in {pull} steps of the pull"
         );
+    }
+
+    /// Initialization at full activation, D = 1e-9, on a graded 6 × 1 mesh:
+    /// the isometric ramp cannot reach it (fibres of the clamped specimen on
+    /// the descending limb of f_λ), the relaxation does, and the result is
+    /// the isometric equilibrium: the Newton correction of the rate-free
+    /// problem with a tangent formed there is within the tolerance.
+    #[test]
+    fn isometric_initialization_at_full_activation_relaxes_to_the_equilibrium() {
+        let p = Params::default();
+        let d = specimen(6, 1);
+        let (m, s) = Muscle::isometric(d.clone(), &p, 0.05, 1.0).unwrap();
+        let r = crate::fe::muscle::Advance {
+            muscle: m.clone(),
+            solution: s,
+            start: m.history.clone(),
+            rate: FibreRate::Isometric,
+            activation: 1.0,
+            iterations: 0,
+            factorizations: 0,
+            residuals: 0,
+            substeps: 1,
+        };
+        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        let tol = 10.0 * RESIDUAL_TOLERANCE;
+        assert!(dx < tol && df < tol, "|dx|/L0 {dx:e}, dF {df:e}");
+        // Active: the force is of the order of sigma0 times the section.
+        let f = d.reaction(&r.solution.evaluation.forces);
+        assert!(f > 0.5 * p.sigma0 * d.mean_area(), "force {f} N");
+    }
+
+    /// An activation jump 0 → 1 within one 10 ms step (no activation
+    /// dynamics: the level is 1 over the whole step) at rest length, which
+    /// drives the contractile elements to their maximum shortening speed
+    /// (the kink of f_v at x = 1): the step completes (by continuation and
+    /// substeps) and ends in an equilibrium.
+    #[test]
+    fn an_activation_jump_completes_in_an_equilibrium() {
+        let p = Params::default();
+        let d = specimen(6, 1);
+        let (m, _) = Muscle::isometric(d.clone(), &p, 0.05, 0.0).unwrap();
+        let r = m.advance(&p, 0.05, 1e-2, &|_| 1.0).unwrap();
+        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        let tol = 10.0 * RESIDUAL_TOLERANCE;
+        assert!(dx < tol && df < tol, "|dx|/L0 {dx:e}, dF {df:e}");
     }
 
     /// The factorisation is a function of the anchor: a muscle whose cached

@@ -1127,13 +1127,28 @@ pub unsafe fn get_directional_derivative<M: Model>(
                 .iter()
                 .map(|&vr| check(vr, Causality::Input, "a known"))
                 .collect::<Result<Vec<_>, _>>()?;
-            if !u_ids.is_empty() {
-                ensure_initialized(inst, F)?;
+            // In initialization mode the initial values are computed first —
+            // on a copy, committed only when every partial derivative can be
+            // taken, so that a refused call changes nothing.
+            let pending = !u_ids.is_empty()
+                && inst.layer.fmi_state == FmiState::InitializationMode
+                && inst.layer.dirty;
+            let mut initialized = None;
+            if pending {
+                let mut trial = inst.model.clone();
+                if let Err(ModelError(msg)) = trial.initialize() {
+                    inst.log.error(&format!(
+                        "{F}: the initial values cannot be computed: {msg}"
+                    ));
+                    return Err(fmi2Error);
+                }
+                initialized = Some(trial);
             }
+            let model = initialized.as_ref().unwrap_or(&inst.model);
             let mut result = vec![0.0; u_ids.len()];
             for (r, &(u, u_name)) in result.iter_mut().zip(&u_ids) {
                 for (&(k, k_name), &dk) in k_ids.iter().zip(dv_k) {
-                    match inst.model.partial_derivative(u, k) {
+                    match model.partial_derivative(u, k) {
                         Ok(p) => *r += p * dk,
                         Err(ModelError(msg)) => {
                             inst.log
@@ -1142,6 +1157,13 @@ pub unsafe fn get_directional_derivative<M: Model>(
                         }
                     }
                 }
+            }
+            if let Some(trial) = initialized {
+                inst.model = trial;
+                inst.layer.dirty = false;
+                inst.log.debug(LogCategory::Events, || {
+                    format!("{F}: initial values computed")
+                });
             }
             dv_u.copy_from_slice(&result);
             Ok(fmi2OK)

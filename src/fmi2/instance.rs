@@ -513,6 +513,16 @@ pub fn decode_state<M: Model>(guid: &str, data: &[u8]) -> Result<Snapshot<M>, St
             model_bytes.len()
         ));
     }
+    let stepping = matches!(
+        fmi_state,
+        FmiState::StepComplete | FmiState::StepFailed | FmiState::StepCanceled
+    );
+    if stepping && !model.is_initialized() {
+        return Err(format!(
+            "malformed FMU state: the instance is in state {} but its model holds no initialized state",
+            fmi_state.name()
+        ));
+    }
     Ok(Snapshot {
         model,
         layer: LayerState {

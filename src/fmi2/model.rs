@@ -191,6 +191,14 @@ pub trait Model: Clone + Send + 'static {
     /// initial equilibrium). Used by `fmi2GetDirectionalDerivative`.
     fn partial_derivative(&self, unknown: Self::Var, known: Self::Var) -> Result<f64, ModelError>;
 
+    /// Whether the model holds the state of an initialized simulation (the
+    /// initial equilibrium or a later step's). A deserialized FMU state whose
+    /// layer has left initialization mode must have one; models whose state
+    /// exists from construction keep the default.
+    fn is_initialized(&self) -> bool {
+        true
+    }
+
     /// Append the complete model state (parameters, inputs, history) as bytes.
     fn serialize(&self, out: &mut Vec<u8>);
     /// Rebuild a model from bytes written by [`Model::serialize`]; advances `input`.

@@ -193,6 +193,31 @@ struct LastStep {
     da_du: f64,
 }
 
+/// The fusiform discretization for these geometry and mesh parameters
+/// (`reuse` when it is that one already).
+fn fe_discretization(
+    reuse: Option<&Arc<Discretization>>,
+    l0: f64,
+    area: f64,
+    resolution: Resolution,
+    axial_grading: f64,
+    fibres: FibreLayout,
+) -> Result<Arc<Discretization>, ModelError> {
+    if let Some(d) = reuse {
+        if d.l0 == l0
+            && d.mesh.resolution == resolution
+            && d.mesh.axial_grading == axial_grading
+            && d.area == area
+            && d.fibres == fibres
+        {
+            return Ok(d.clone());
+        }
+    }
+    Discretization::fusiform_graded(l0, area, resolution, axial_grading, fibres, Ends::Clamped)
+        .map(Arc::new)
+        .map_err(ModelError)
+}
+
 /// The step length of a rate mode (`None`: isometric).
 fn rate_step(rate: FibreRate) -> Option<f64> {
     match rate {
@@ -277,27 +302,15 @@ impl<S: Scene> HillFEModel<S> {
             n_axial: self.n_axial as usize,
             n_radial: self.n_radial as usize,
         };
-        if let Some(m) = &self.muscle {
-            let d = &m.disc;
-            if d.l0 == self.l0
-                && d.mesh.resolution == resolution
-                && d.mesh.axial_grading == self.axial_grading
-                && d.area == self.area
-                && d.fibres == self.layout()
-            {
-                return Ok(d.clone());
-            }
-        }
-        Discretization::fusiform_graded(
+        let reuse = self.muscle.as_ref().map(|m| &m.disc);
+        fe_discretization(
+            reuse,
             self.l0,
             self.area,
             resolution,
             self.axial_grading,
             self.layout(),
-            Ends::Clamped,
         )
-        .map(Arc::new)
-        .map_err(ModelError)
     }
 
     fn check_stretch(&self, length: f64) -> Result<(), String> {
@@ -675,6 +688,10 @@ impl<S: Scene> Model for HillFEModel<S> {
         }
     }
 
+    fn is_initialized(&self) -> bool {
+        self.muscle.is_some() && self.last.is_some()
+    }
+
     fn serialize(&self, out: &mut Vec<u8>) {
         let params: Vec<f64> = PARAMETERS
             .iter()
@@ -703,7 +720,20 @@ impl<S: Scene> Model for HillFEModel<S> {
                 let hist = |h: &[FibreHistory]| -> Vec<f64> {
                     h.iter().flat_map(|x| [x.lambda_s, x.lambda_m]).collect()
                 };
+                // The geometry and mesh the muscle was built with (the
+                // parameters may have been set since, before a new
+                // initialization).
+                let d = &m.disc;
                 w.bool(true)
+                    .f64(d.l0)
+                    .f64(d.area)
+                    .i32(d.mesh.resolution.n_axial as i32)
+                    .i32(d.mesh.resolution.n_radial as i32)
+                    .f64(d.mesh.axial_grading)
+                    .i32(match d.fibres {
+                        FibreLayout::Axial => 0,
+                        FibreLayout::Meridian => 1,
+                    })
                     .f64s(&m.x)
                     .f64s(&hist(&m.history))
                     .f64(m.length)
@@ -811,7 +841,37 @@ impl<S: Scene> Model for HillFEModel<S> {
             return Err(bad("a non-finite value".into()));
         }
         if r.bool()? {
-            let disc = m.discretization()?;
+            let (l0, area) = (r.f64()?, r.f64()?);
+            let (n_axial, n_radial) = (r.i32()?, r.i32()?);
+            let grading = r.f64()?;
+            let layout = r.i32()?;
+            check_range("L0", l0, L0_RANGE).map_err(|e| bad(e.0))?;
+            check_range("area", area, AREA_RANGE).map_err(|e| bad(e.0))?;
+            check_range("axial_grading", grading, AXIAL_GRADING_RANGE).map_err(|e| bad(e.0))?;
+            let in_range = |v: i32, (lo, hi): (i32, i32)| (lo..=hi).contains(&v);
+            if !(in_range(n_axial, N_AXIAL_RANGE)
+                && in_range(n_radial, N_RADIAL_RANGE)
+                && in_range(layout, (0, 1)))
+            {
+                return Err(bad(format!(
+                    "bad mesh {n_axial} x {n_radial}, fibre layout {layout}"
+                )));
+            }
+            let disc = fe_discretization(
+                None,
+                l0,
+                area,
+                Resolution {
+                    n_axial: n_axial as usize,
+                    n_radial: n_radial as usize,
+                },
+                grading,
+                if layout == 1 {
+                    FibreLayout::Meridian
+                } else {
+                    FibreLayout::Axial
+                },
+            )?;
             let pairs = |v: Vec<f64>| -> Result<Vec<FibreHistory>, ModelError> {
                 if v.len() != 2 * disc.n_elements() || v.iter().any(|x| !x.is_finite()) {
                     return Err(bad(format!("{} history values", v.len())));

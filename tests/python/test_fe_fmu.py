@@ -68,24 +68,39 @@ def test_activated_elongation_is_above_passive(passive, activated):
     assert oa["activation_level"][i] == pytest.approx(1 - np.exp(-50 * t[i]), rel=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 3 item 3 not met: near 20 % strain the largest element volume ratio (mean of its nodal J) "
-    "is about 1.001 on the default mesh (1.00105 measured at 19.5 %), next to the clamped face's rim "
-    "(stress singularity of a clamped, nearly incompressible body); see docs/fe.md"))
-def test_simulate_fmu_runs_and_volume_is_conserved(fe_path):
-    """simulate_fmu on the default experiment inputs, with the FE diagnostics:
-    the volume constraint holds to 1e-3 at 20 % strain with D = 1e-9."""
+def _default_pull(fe_path):
+    """simulate_fmu on the passive pull to 20 % strain with the FE diagnostics."""
     sig = np.array([(0.0, 0.0, L0), (2.0, 0.0, 1.2 * L0)],
                    dtype=[("time", float), ("activation", float), ("length", float)])
-    r = simulate_fmu(str(fe_path), stop_time=2.0, output_interval=H, input=sig,
-                     output=["force", "volume_ratio_min", "volume_ratio_max",
-                             "max_fibre_stretch", "newton_iterations"])
-    last = r[-1]
+    return simulate_fmu(str(fe_path), stop_time=2.0, output_interval=H, input=sig,
+                        output=["force", "volume_ratio_min", "volume_ratio_max",
+                                "max_fibre_stretch", "newton_iterations"])
+
+
+def test_simulate_fmu_runs_with_the_fe_diagnostics(fe_path):
+    """The diagnostics at 20 % strain, D = 1e-9: a pulled specimen, volume ratios
+    bracketing 1 within 2e-3 (the largest sits at the clamped faces' rims; the
+    interior bound of 1e-3 and the rim singularity are tested in
+    tests/fe_verification.rs), the thin ends stretched beyond the mean, a few Newton
+    corrections per step."""
+    last = _default_pull(fe_path)[-1]
     assert last["force"] > 10.0
-    assert abs(last["volume_ratio_min"] - 1) < 1e-3
-    assert abs(last["volume_ratio_max"] - 1) < 1e-3
+    assert 1 - 2e-3 < last["volume_ratio_min"] <= 1 <= last["volume_ratio_max"] < 1 + 2e-3
     assert last["max_fibre_stretch"] > 1.2  # the thin ends stretch more than the mean
     assert 1 <= last["newton_iterations"] <= 10
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "issue 3 item 3 holds away from the end faces' rims only: at 20 % strain the largest element "
+    "volume ratio (mean of its nodal J) is 1.00117 on the default mesh, in the layer at a clamped "
+    "face's rim, where a clamped face meets the free surface and the nearly incompressible pressure "
+    "is singular (it grows under refinement: 1.00070, 1.00117, 1.00123 on 12x2, 16x3, 24x4; "
+    "tests/fe_verification.rs, docs/fe.md)"))
+def test_volume_ratio_is_within_1e3_in_every_element(fe_path):
+    """The pointwise claim of issue 3 item 3, including the rim elements."""
+    last = _default_pull(fe_path)[-1]
+    assert abs(last["volume_ratio_min"] - 1) < 1e-3
+    assert abs(last["volume_ratio_max"] - 1) < 1e-3
 
 
 def run_steps(m, n, start, rate):

@@ -1149,11 +1149,9 @@ fn execute_inner<M: Model>(
         (s.command, stretch)
     };
     for i in 0..n_total {
-        if i % 256 == 0 {
-            watch.beat();
-            if Instant::now() > watch.deadline {
-                return Ok(Outcome::Timeout { t: i as f64 * h });
-            }
+        watch.beat();
+        if i % 256 == 0 && Instant::now() > watch.deadline {
+            return Ok(Outcome::Timeout { t: i as f64 * h });
         }
         let t = i as f64 * h;
         let (u, stretch) = signal(i, 1.0);
@@ -1175,6 +1173,12 @@ fn execute_inner<M: Model>(
                     fmu.restore()?;
                     let mut ok = true;
                     for k in 0..pieces {
+                        // Every FMI call is a sign of life, and the cell's
+                        // time bound holds inside a retry too.
+                        watch.beat();
+                        if Instant::now() > watch.deadline {
+                            return Ok(Outcome::Timeout { t });
+                        }
                         let (u, s) = signal(i, (k + 1) as f64 / pieces as f64);
                         fmu.set_inputs(u, s * l0)?;
                         let hp = h / pieces as f64;
