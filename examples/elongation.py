@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """The paper's passive and activated elongation of a 5 cm muscle through fmpy.
 
-Runs the ``HillMuscle1D`` FMU (FMI 2.0 Co-Simulation) with fmpy's ``FMU2Slave``
-in a plain master loop, prints the engineering stress at 5, 10, 15 and 20 %
-strain for both experiments and writes plots into an output directory::
+Runs the ``HillMuscle1D`` FMU (FMI 2.0 Co-Simulation) — and beside it
+``HillMuscleFE`` when ``dist/HillMuscleFE.fmu`` exists (``--fe-fmu ''``
+skips it) — with fmpy's ``FMU2Slave`` in a plain master loop, prints the
+engineering stress at 5, 10, 15 and 20 % strain for both experiments and both
+variants and writes plots (both variants on the same axes) into an output
+directory::
 
     python examples/elongation.py --out out
     python examples/elongation.py --fmu dist/HillMuscle1D.fmu --out out
@@ -45,6 +48,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_FMU = REPO / "dist" / "HillMuscle1D.fmu"
+DEFAULT_FE_FMU = REPO / "dist" / "HillMuscleFE.fmu"
 
 L0 = 0.05
 """Rest length of the paper's specimen [m] (the FMU's default ``L0``)."""
@@ -411,13 +415,18 @@ def stress_at_strains(length, stress, strains=TABLE_STRAINS, l0=L0):
 # The demo: table and plots
 # --------------------------------------------------------------------------
 
-def format_table(passive, activated, strains=TABLE_STRAINS):
-    lines = [
-        "Engineering stress [kPa] (HillMuscle1D, default parameters, step 1e-3 s)",
-        f"{'strain':>8} {'passive':>12} {'activated':>12}",
-    ]
-    for e, p, a in zip(strains, passive, activated):
-        lines.append(f"{100 * e:7.0f}% {p / 1e3:12.3f} {a / 1e3:12.3f}")
+def format_table(passive, activated, strains=TABLE_STRAINS, fe=None):
+    """The stress table: one column per experiment of ``HillMuscle1D``, and
+    with ``fe = (passive, activated)`` the same for ``HillMuscleFE``."""
+    head = "Engineering stress [kPa] (default parameters, step 1e-3 s)"
+    if fe is None:
+        lines = [head.replace("(", "(HillMuscle1D, "), f"{'strain':>8} {'passive':>12} {'activated':>12}"]
+        for e, p, a in zip(strains, passive, activated):
+            lines.append(f"{100 * e:7.0f}% {p / 1e3:12.3f} {a / 1e3:12.3f}")
+        return "\n".join(lines)
+    lines = [head, f"{'strain':>8} {'1D passive':>12} {'FE passive':>12} {'1D activated':>13} {'FE activated':>13}"]
+    for e, p, fp, a, fa in zip(strains, passive, fe[0], activated, fe[1]):
+        lines.append(f"{100 * e:7.0f}% {p / 1e3:12.3f} {fp / 1e3:12.3f} {a / 1e3:13.3f} {fa / 1e3:13.3f}")
     return "\n".join(lines)
 
 
@@ -435,7 +444,7 @@ def plot(out_dir: Path, runs: dict):
         ax.plot(100 * (L / L0 - 1), o["stress"] / 1e3, label=label)
     ax.set_xlabel("strain [%]")
     ax.set_ylabel("engineering stress [kPa]")
-    ax.set_title("HillMuscle1D: elongation at 5 mm/s")
+    ax.set_title("elongation at 5 mm/s")
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -463,6 +472,9 @@ def plot(out_dir: Path, runs: dict):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--fmu", default=str(DEFAULT_FMU), help="path to HillMuscle1D.fmu (default: %(default)s)")
+    parser.add_argument("--fe-fmu", default=str(DEFAULT_FE_FMU),
+                        help="path to HillMuscleFE.fmu, run beside the 1D muscle when it exists "
+                             "(default: %(default)s; '' to skip)")
     parser.add_argument("--out", default="out", help="directory for the plots (default: %(default)s)")
     parser.add_argument("--step", type=float, default=1e-3, help="communication step [s] (default: %(default)s)")
     args = parser.parse_args(argv)
@@ -476,7 +488,15 @@ def main(argv=None):
     }
     passive = stress_at_strains(runs["passive"][1], runs["passive"][2]["stress"])
     activated = stress_at_strains(runs["activated"][1], runs["activated"][2]["stress"])
-    print(format_table(passive, activated))
+    fe = None
+    if args.fe_fmu and os.path.exists(args.fe_fmu):
+        fe_runs = {
+            "FE passive": passive_elongation(args.fe_fmu, step=args.step),
+            "FE activated": activated_elongation(args.fe_fmu, step=args.step),
+        }
+        fe = tuple(stress_at_strains(r[1], r[2]["stress"]) for r in fe_runs.values())
+        runs = {"1D passive": runs["passive"], "1D activated": runs["activated"], **fe_runs}
+    print(format_table(passive, activated, fe=fe))
     for path in plot(Path(args.out), runs):
         print(f"wrote {path}")
     return 0
