@@ -61,20 +61,22 @@
 //!   ("initialization: ..."). The oracle leaves these calls open for both
 //!   models; the harness checks that a refusal is an `fmi2Error` with a
 //!   message that changes nothing (the instance stays in initialization
-//!   mode); the parameter-bound test accepts such a refusal for this model
-//!   only ([`Fe::INIT_MAY_FAIL`]) and lists the refused cases.
+//!   mode). The parameter-bound test does not accept one
+//!   ([`Fe::INIT_MAY_FAIL`] is false): every parameter at either end of
+//!   its range, the others at their defaults, initializes.
 //! - **Directional derivatives** only of `force`, `stress` and
 //!   `activation_level` ([`Fe::DERIVATIVE_OUTPUTS`]): any other unknown
 //!   with a known is `fmi2Error` (the model's documented contract).
 //! - **A larger FMU state**: positions, element histories, the factorised
-//!   tangent's anchor and the predictor's trend. Every snapshot must
-//!   deserialize (property 7) except for the known bug below; the corrupt
-//!   states of `corrupt_fmu_states` reach these parts of the state too.
+//!   tangent's anchor and the predictor's trend, and the geometry and mesh
+//!   the committed muscle was built with. Every snapshot must deserialize
+//!   (property 7); the corrupt states of `corrupt_fmu_states` reach these
+//!   parts of the state too.
 //! - **`StepError::Error`** only for a model without a muscle, which
-//!   `HillFE::new` never makes (it initializes) and `HillFE::serialize`
-//!   never writes: for every instance and every state the FMU serialized,
-//!   every `fmi2Error` is still a rejection that must change nothing. (A
-//!   crafted state without a muscle is accepted: a bug, below.)
+//!   `HillFE::new` never makes (it initializes), `HillFE::serialize` never
+//!   writes and `HillFE::deserialize` refuses after initialization: for
+//!   every instance and every state, every `fmi2Error` is a rejection that
+//!   must change nothing.
 //!
 //! # Case counts and time
 //!
@@ -100,38 +102,34 @@
 //!     random_call_sequences -- --nocapture   # what was exercised
 //! ```
 //!
-//! # Bugs found (ignored regression tests at the end of this file)
+//! # Bugs found, fixed, and their regression tests (end of this file)
 //!
 //! In `HillMuscleFE`:
 //!
-//! - [`bug_mesh_parameters_set_before_initialization_make_the_state_unserializable`] —
-//!   after `n_axial` or `n_radial` is set (instantiated or in initialization
-//!   mode, before the next successful initialization), the FMU's own
-//!   serialized state is refused by its own `fmi2DeSerializeFMUstate`
-//!   ("N position values"). Every `Init` produces such states, so the
-//!   harness tolerates exactly this failure ([`Fe::known_round_trip_bug`]:
-//!   the bytes decode once the mesh parameters are set back to those of a
-//!   committed mesh; [`the_known_mesh_bug_is_recognised_only_where_it_applies`])
-//!   to check everything else.
-//! - [`bug_a_specimen_much_wider_than_long_is_refused_at_rest`] — `L0` = 1e-3
-//!   m or `area` = 1 m² (both in their declared ranges) and the muscle at
-//!   rest: `fmi2ExitInitializationMode` refuses ("no isometric equilibrium
-//!   ... no decrease along the Newton direction") the exact, stress-free
-//!   reference configuration. Tolerated by [`Fe::INIT_MAY_FAIL`] (the
-//!   refusal itself is well-formed: an error with a message that changes
-//!   nothing), listed by the parameter-bound test.
-//! - [`bug_a_state_without_a_muscle_deserializes_and_cannot_step`] — a
-//!   crafted, well-formed state without a muscle deserializes; its first
-//!   step is an `fmi2Error` into the `error` state. Not reached by the
-//!   random mutations.
+//! - [`mesh_parameters_set_before_initialization_keep_the_state_serializable`]:
+//!   after `n_axial` or `n_radial` was set, and before the next
+//!   initialization, the FMU's own serialized state was refused by its own
+//!   `fmi2DeSerializeFMUstate` ("N position values"): the deserializer
+//!   built the mesh from the new parameters, the positions were the
+//!   committed mesh's. The state now carries the committed geometry and
+//!   mesh; [`a_state_whose_parameters_disagree_with_its_muscle_is_refused_after_initialization`]
+//!   checks the other side (such a state is legal only before the next
+//!   initialization).
+//! - [`a_specimen_much_wider_than_long_initializes_at_rest`]: `L0` = 1e-3 m
+//!   or `area` = 1 m² (both in their declared ranges) at rest were refused
+//!   by `fmi2ExitInitializationMode` ("no decrease along the Newton
+//!   direction"): Newton's rounding-level test was scaled by L0, not by the
+//!   size of the specimen.
+//! - [`a_state_without_a_muscle_is_refused`]: a crafted, well-formed state
+//!   without a muscle in `stepComplete` deserialized; its first step was an
+//!   `fmi2Error` into the `error` state.
 //!
 //! In the FMI layer, reachable only with a model that refuses some
 //! derivatives:
 //!
-//! - [`bug_refused_directional_derivative_computes_the_initial_values`] —
-//!   a refused `fmi2GetDirectionalDerivative` in initialization mode keeps
-//!   the initial values it computed before the refusal. Tolerated exactly
-//!   by the harness (`Harness::initialized_by_refusal`).
+//! - [`a_refused_directional_derivative_changes_nothing`]: a refused
+//!   `fmi2GetDirectionalDerivative` in initialization mode kept the initial
+//!   values it had computed before the refusal.
 
 #![cfg(feature = "fe")]
 
@@ -144,7 +142,7 @@ use std::ptr::null_mut;
 use harness::{fix_checksum, round_trip_status, split_state, vr_named, Fmu, Integers, Subject};
 use hill_muscle::fmi2::api;
 use hill_muscle::fmi2::bytes::ByteReader;
-use hill_muscle::fmi2::instance::{decode_state, LayerState};
+use hill_muscle::fmi2::instance::decode_state;
 use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::state::FmiState;
 use hill_muscle::fmi2::types::*;
@@ -160,10 +158,6 @@ pub type Sub = Fe;
 const MESH_1X1: Integers = &[("n_axial", 1), ("n_radial", 1)];
 /// The smallest mesh with free nodes (one interior slice).
 const MESH_2X1: Integers = &[("n_axial", 2), ("n_radial", 1)];
-
-/// The regression test of the known round-trip bug.
-const MESH_BUG: &str =
-    "bug_mesh_parameters_set_before_initialization_make_the_state_unserializable";
 
 impl Subject for Fe {
     type M = HillFE;
@@ -184,50 +178,9 @@ impl Subject for Fe {
     const SPECIAL_VALUE_BOTH_LOGGING: bool = false;
     const FUNCTIONS_PER_SEQUENCE: usize = usize::MAX;
     const LARGEST_INTEGER_TRIED: i32 = 2;
-    const INIT_MAY_FAIL: bool = true;
+    const INIT_MAY_FAIL: bool = false;
     const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> =
         Some(&["force", "stress", "activation_level"]);
-
-    /// The known bug [`MESH_BUG`]: the deserializer builds the mesh from the
-    /// state's mesh parameters, while the positions (and histories) it reads
-    /// are those of the mesh of the last successful initialization. So the
-    /// refusal is the known one exactly when it is about the positions, in
-    /// a state where parameters can have been set since (`instantiated` or
-    /// `initializationMode`, dirty), and the bytes decode once `n_axial` and
-    /// `n_radial` are set back to one of the meshes an instance can have
-    /// been initialized with in the harness (the default 16 × 3, the
-    /// `Init` and cost meshes, and what random sets of one of the two
-    /// reach).
-    fn known_round_trip_bug(bytes: &[u8], layer: &LayerState, err: &str) -> Option<&'static str> {
-        let settable = matches!(
-            layer.fmi_state,
-            FmiState::Instantiated | FmiState::InitializationMode
-        );
-        if !(settable && layer.dirty && err.contains("position values")) {
-            return None;
-        }
-        let at = mesh_offset(bytes)?;
-        let meshes = [
-            (16, 3),
-            (1, 1),
-            (2, 1),
-            (1, 2),
-            (2, 2),
-            (1, 3),
-            (2, 3),
-            (16, 1),
-            (16, 2),
-        ];
-        meshes.into_iter().find_map(|(na, nr): (i32, i32)| {
-            let mut patched = bytes.to_vec();
-            patched[at..at + 4].copy_from_slice(&na.to_le_bytes());
-            patched[at + 4..at + 8].copy_from_slice(&nr.to_le_bytes());
-            fix_checksum(&mut patched);
-            decode_state::<HillFE>(&guid::<HillFE>(), &patched)
-                .is_ok()
-                .then_some(MESH_BUG)
-        })
-    }
 }
 
 /// Offset of `n_axial` (followed by `n_radial`, both i32) in a serialized
@@ -251,33 +204,20 @@ fn mesh_offset(bytes: &[u8]) -> Option<usize> {
 harness_tests!(release_only);
 
 // ---------------------------------------------------------------------------
-// Bugs this harness found in HillMuscleFE (not fixed here: src/ is not this
-// test's to change)
+// Regression tests of the bugs this harness found (module docs)
 // ---------------------------------------------------------------------------
 
 /// Found by `random_call_sequences` (every `Init`, which sets the mesh in
 /// initialization mode, produced it). Sequence: `fmi2Instantiate`;
-/// `fmi2SetInteger(n_axial = 2)` → `fmi2OK` (the state `instantiated`);
-/// `fmi2GetFMUstate`, `fmi2SerializedFMUstateSize`, `fmi2SerializeFMUstate`
-/// → `fmi2OK`; `fmi2DeSerializeFMUstate` of those bytes. Expected: `fmi2OK`
-/// (the FMU's own serialized state restores, as it does in every other
-/// state; `fmi2SetFMUstate` of the in-memory state works). Actual:
-/// `fmi2Error`, "malformed model state: HillMuscleFE state: 1887 position
-/// values". The same in initialization mode after setting `n_axial` or
-/// `n_radial`, until the next successful initialization (which builds the
-/// new mesh). Suspected cause: `HillFE::deserialize` (src/fmus/hillfe.rs)
-/// rebuilds the discretization with `m.discretization()` from the mesh
-/// parameters it has just read, while `HillFE::serialize` writes the
-/// positions, histories, anchor and trend of the committed muscle, whose
-/// mesh is the one of the last `initialize` — the mesh the committed
-/// muscle was built with is not part of the serialized state. A fix would
-/// serialize the committed discretization's resolution (and geometry:
-/// `L0`, `area`, `axial_grading`, `fibre_layout` set before a
-/// re-initialization have the same mismatch, which goes unnoticed only
-/// because the node count does not change).
+/// `fmi2SetInteger(n_axial = 2)` (instantiated, or in initialization mode);
+/// `fmi2GetFMUstate`, `fmi2SerializeFMUstate`, `fmi2DeSerializeFMUstate`
+/// of those bytes: must be `fmi2OK` (was "1887 position values").
 #[test]
-#[ignore = "bug: after n_axial/n_radial is set and before the next initialization, fmi2DeSerializeFMUstate refuses the FMU's own serialized state (HillFE::deserialize builds the mesh from the new parameters, the positions are the committed mesh's)"]
-fn bug_mesh_parameters_set_before_initialization_make_the_state_unserializable() {
+#[cfg_attr(
+    debug_assertions,
+    ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
+)]
+fn mesh_parameters_set_before_initialization_keep_the_state_serializable() {
     for in_initialization_mode in [false, true] {
         let f = Fmu::new(false);
         unsafe {
@@ -297,50 +237,38 @@ fn bug_mesh_parameters_set_before_initialization_make_the_state_unserializable()
     }
 }
 
-/// The known bug's signature is narrow: once the instance is initialized
-/// with the new mesh, its serialized state round-trips again, and a state
-/// whose mesh parameters were changed in the bytes (checksum fixed) without
-/// a pending change is refused and not taken for the known bug.
+/// The other side of the fix above: once initialized, the mesh parameters
+/// are fixed, so a state in `stepComplete` whose `n_axial` differs from the
+/// mesh of its muscle (1 × 1 in the parameters of a 2 × 1 state, checksum
+/// fixed) was not written by the FMU and is refused, with the instance
+/// unchanged.
 #[test]
 #[cfg_attr(
     debug_assertions,
     ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
 )]
-fn the_known_mesh_bug_is_recognised_only_where_it_applies() {
+fn a_state_whose_parameters_disagree_with_its_muscle_is_refused_after_initialization() {
     let f = Fmu::new(false);
     unsafe {
         assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
         let vr = vr_named("n_axial");
         assert_eq!(api::set_integer::<HillFE>(f.c, &vr, 1, &2), fmi2OK);
-    }
-    let pending = f.state_bytes().unwrap();
-    let (layer, _) = split_state(&pending).unwrap();
-    match decode_state::<HillFE>(&guid::<HillFE>(), &pending) {
-        // Fixed: then nothing is left to recognise.
-        Ok(_) => {}
-        Err(e) => assert_eq!(
-            Fe::known_round_trip_bug(&pending, &layer, &e),
-            Some(MESH_BUG),
-            "{e}"
-        ),
-    }
-    unsafe {
         assert_eq!(api::exit_initialization_mode::<HillFE>(f.c), fmi2OK);
     }
     let (st, log, bytes) = round_trip_status(&f);
     assert_eq!(st, fmi2OK, "{log:?}");
-    // A corrupt mesh (1 × 1 in the bytes of a 2 × 1 state): refused, and
-    // not the known bug (the state is not one where the mesh can be set).
     let at = mesh_offset(&bytes).unwrap();
+    assert_eq!(bytes[at..at + 4], 2i32.to_le_bytes(), "the layout changed");
     let mut corrupt = bytes.clone();
     corrupt[at..at + 4].copy_from_slice(&1i32.to_le_bytes());
     fix_checksum(&mut corrupt);
-    let e = decode_state::<HillFE>(&guid::<HillFE>(), &corrupt)
-        .err()
-        .expect("a state with the wrong mesh decodes");
     let (layer, _) = split_state(&corrupt).unwrap();
     assert_eq!(layer.fmi_state, FmiState::StepComplete);
-    assert_eq!(Fe::known_round_trip_bug(&corrupt, &layer, &e), None);
+    let e = decode_state::<HillFE>(&guid::<HillFE>(), &corrupt)
+        .err()
+        .expect("a state whose mesh parameters are not its muscle's decodes");
+    assert!(e.contains("no initialized state"), "{e}");
+    let before = f.state_bytes().unwrap();
     let mut s: fmi2FMUstate = null_mut();
     let d = unsafe {
         api::deserialize_fmu_state::<HillFE>(
@@ -351,71 +279,60 @@ fn the_known_mesh_bug_is_recognised_only_where_it_applies() {
         )
     };
     assert_eq!(d, fmi2Error);
+    assert!(s.is_null());
+    assert!(f.state_bytes().unwrap() == before);
 }
 
-/// Found by `every_parameter_at_either_bound_steps_and_round_trips` (`L0` =
-/// 1e-4 m and `area` = 1 m², both declared valid, refused at
-/// initialization). Sequence, on the default 16 × 3 mesh: `fmi2Instantiate`;
-/// `fmi2SetReal(L0 = 1e-3)` (or `area = 1`) → `fmi2OK`;
-/// `fmi2EnterInitializationMode`; `fmi2ExitInitializationMode`, with
-/// `length` = `L0` (its default) and activation 0: the specimen at rest,
-/// whose reference configuration is the exact, stress-free equilibrium.
-/// Expected: `fmi2OK`, force 0. Actual: `fmi2Error`, "initialization
-/// failed: initialization: no isometric equilibrium at length 0.001 m and
-/// activation level 0 in up to 64 increments: Newton: no decrease along the
-/// Newton direction (correction 1.2e-17 m, residual 2.2e-11 N)" (area = 1:
-/// correction 1.0e-15 m, residual 1.7e-7 N). On the 2 × 1 mesh already
-/// `area` = 0.01 m² (L0 = 0.05 m) and `L0` = 1e-3 m fail; `L0` = 5e-3 m passes. Suspected
-/// cause: the Newton convergence test (`Discretization::converged`,
-/// src/fe/newton.rs, the rounding-level test `max_abs(dx) <=
-/// ROUNDING_CORRECTION * self.l0` and `tolerance * self.l0`) measures
-/// corrections against L0, while the node coordinates — and so the
-/// round-off left in the residual and its corrections — scale with the
-/// specimen's size, here its radius (7.3 mm for L0 = 1 mm, 0.56 m for
-/// area = 1 m²), not its length; a round-off-level residual then neither
-/// passes the test nor decreases along the line search.
+/// Found by `every_parameter_at_either_bound_steps_and_round_trips`: on the
+/// default 16 × 3 mesh, `L0` = 1e-3 m or `area` = 1 m² (both declared
+/// valid), `length` = `L0` and activation 0 — the specimen at rest, whose
+/// reference configuration is the exact equilibrium — was refused by
+/// `fmi2ExitInitializationMode`. Now it initializes, and the force at rest
+/// is round-off: below 1e-12 of the force scale sigma0 · area.
 #[test]
-#[ignore = "bug: a specimen much wider than long (L0 = 1e-3 m, or area = 1 m2) is refused at rest by fmi2ExitInitializationMode: Newton's rounding-level test is scaled by L0, not by the coordinates (src/fe/newton.rs, converged)"]
-fn bug_a_specimen_much_wider_than_long_is_refused_at_rest() {
+#[cfg_attr(
+    debug_assertions,
+    ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
+)]
+fn a_specimen_much_wider_than_long_initializes_at_rest() {
     for (name, value) in [("L0", 1e-3), ("area", 1.0)] {
         let f = Fmu::new(false);
         let vr = vr_named(name);
-        let force = vr_named("force");
-        let mut out = f64::NAN;
+        let [force, sigma0, area] = ["force", "sigma0", "area"].map(vr_named);
+        let (mut out, mut s0, mut a) = (f64::NAN, f64::NAN, f64::NAN);
         let st = unsafe {
             assert_eq!(api::set_real::<HillFE>(f.c, &vr, 1, &value), fmi2OK);
             assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
             let st = api::exit_initialization_mode::<HillFE>(f.c);
             api::get_real::<HillFE>(f.c, &force, 1, &mut out);
+            api::get_real::<HillFE>(f.c, &sigma0, 1, &mut s0);
+            api::get_real::<HillFE>(f.c, &area, 1, &mut a);
             st
         };
         let log: Vec<String> = f.book.take().into_iter().map(|e| e.message).collect();
         assert_eq!(st, fmi2OK, "{name} = {value}: {log:?}");
-        assert!(out.abs() < 1e-9, "{name} = {value}: force {out} at rest");
+        assert!(
+            out.abs() < 1e-12 * s0 * a,
+            "{name} = {value}: force {out} N at rest (scale {} N)",
+            s0 * a
+        );
     }
 }
 
 /// Found by `every_function_in_every_state_with_legal_and_illegal_arguments`
-/// (and by `random_call_sequences`). A bug of the FMI layer, reachable with
+/// (and by `random_call_sequences`); a bug of the FMI layer, reachable with
 /// this model because it refuses the derivatives of some outputs.
 /// Sequence: `fmi2Instantiate`; `fmi2EnterInitializationMode`;
-/// `fmi2SetReal(activation = 0.5)` (a value set: the initial values are to
-/// be computed again); `fmi2GetDirectionalDerivative(unknown =
-/// cauchy_stress, known = length)`. Expected: `fmi2Error` ("HillMuscleFE
-/// provides directional derivatives of force, stress and activation_level
-/// only") and the instance unchanged, like every refused call (the
-/// layer's contract: a rejected call changes nothing). Actual: `fmi2Error`,
-/// but the initial values have been computed and kept — the serialized
-/// state differs (dirty flag cleared, the model initialized), and with
-/// debug logging the call logs "fmi2GetDirectionalDerivative: initial
-/// values computed" before its error, while the next `fmi2GetReal` of an
-/// output no longer logs it. Suspected cause: `get_directional_derivative`
-/// (src/fmi2/api.rs) calls `ensure_initialized` before the model's
-/// `partial_derivative`s, which can still fail, and does not restore the
-/// model and the dirty flag when one does.
+/// `fmi2SetReal(activation = 0.5)` (the initial values are to be computed
+/// again); `fmi2GetDirectionalDerivative(unknown = cauchy_stress, known =
+/// length)`: `fmi2Error`, `dvUnknown` not written, and the instance
+/// unchanged (the initial values were computed and kept).
 #[test]
-#[ignore = "bug: a refused fmi2GetDirectionalDerivative in initialization mode keeps the initial values it computed (src/fmi2/api.rs, get_directional_derivative: ensure_initialized before the model's partial_derivative can fail)"]
-fn bug_refused_directional_derivative_computes_the_initial_values() {
+#[cfg_attr(
+    debug_assertions,
+    ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
+)]
+fn a_refused_directional_derivative_changes_nothing() {
     let f = Fmu::new(false);
     let (unknown, known) = (vr_named("cauchy_stress"), vr_named("length"));
     let mut dv = f64::NAN;
@@ -453,25 +370,20 @@ fn with_model_bytes(bytes: &[u8], model: &[u8]) -> Vec<u8> {
     b
 }
 
-/// Found while writing this harness (reading `HillFE::deserialize` for
-/// what `StepError::Error` needs), confirmed here; the random mutations do
-/// not reach it (they would have to shorten the model's bytes consistently).
-/// Sequence: a `HillMuscleFE` state in `stepComplete`, serialized, with its
-/// model bytes cut after the "has a muscle" flag, set to false (length
-/// prefixes and checksum recomputed: a well-formed state, but one
-/// `HillFE::serialize` never writes — every instance has a muscle, since
-/// `HillFE::new` initializes); `fmi2DeSerializeFMUstate`, `fmi2SetFMUstate`,
-/// `fmi2DoStep`. Expected: the state refused at `fmi2DeSerializeFMUstate`
-/// (as the layer refuses a NaN time, and the model a NaN output), or a
-/// step that completes or is discarded. Actual: accepted, and the step
-/// returns `fmi2Error` ("the model is not initialized") and puts the
-/// instance into the FMI `error` state (`fmi2GetDirectionalDerivative`
-/// too is refused). Suspected cause: `HillFE::deserialize`
-/// (src/fmus/hillfe.rs, `if r.bool()? { ... }` with no `else`) accepts a
-/// missing muscle instead of refusing it.
+/// Found while writing this harness (reading `HillFE::deserialize`); the
+/// random mutations do not reach it (they would have to shorten the model's
+/// bytes consistently). A `stepComplete` state with its model bytes cut
+/// after the "has a muscle" flag, set to false (length prefixes and
+/// checksum recomputed: well-formed, but never written by
+/// `HillFE::serialize`): `fmi2DeSerializeFMUstate` must refuse it (it used
+/// to accept it, and the first step was an `fmi2Error` into the `error`
+/// state).
 #[test]
-#[ignore = "bug: HillFE::deserialize accepts a state without a muscle (which HillFE::serialize never writes); its first fmi2DoStep is an fmi2Error that enters the error state"]
-fn bug_a_state_without_a_muscle_deserializes_and_cannot_step() {
+#[cfg_attr(
+    debug_assertions,
+    ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
+)]
+fn a_state_without_a_muscle_is_refused() {
     let f = Fmu::new(false);
     let bytes = unsafe {
         assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
@@ -514,14 +426,11 @@ fn bug_a_state_without_a_muscle_deserializes_and_cannot_step() {
     let d = unsafe {
         api::deserialize_fmu_state::<HillFE>(f.c, b.as_ptr() as *const fmi2Byte, b.len(), &mut s)
     };
-    f.book.clear();
-    if d != fmi2OK {
-        return; // refused: fixed
-    }
-    let step = unsafe {
-        assert_eq!(api::set_fmu_state::<HillFE>(f.c, s), fmi2OK);
-        api::do_step::<HillFE>(f.c, 0.0, 1e-3, 0)
-    };
     let log: Vec<String> = f.book.take().into_iter().map(|e| e.message).collect();
-    assert_ne!(step, fmi2Error, "{log:?}");
+    assert_eq!(d, fmi2Error, "{log:?}");
+    assert!(s.is_null());
+    assert!(
+        log.iter().any(|m| m.contains("no initialized state")),
+        "{log:?}"
+    );
 }

@@ -203,19 +203,29 @@ fn fe_discretization(
     axial_grading: f64,
     fibres: FibreLayout,
 ) -> Result<Arc<Discretization>, ModelError> {
-    if let Some(d) = reuse {
-        if d.l0 == l0
-            && d.mesh.resolution == resolution
-            && d.mesh.axial_grading == axial_grading
-            && d.area == area
-            && d.fibres == fibres
-        {
-            return Ok(d.clone());
-        }
+    if let Some(d) = reuse.filter(|d| built_with(d, l0, area, resolution, axial_grading, fibres)) {
+        return Ok(d.clone());
     }
     Discretization::fusiform_graded(l0, area, resolution, axial_grading, fibres, Ends::Clamped)
         .map(Arc::new)
         .map_err(ModelError)
+}
+
+/// Whether `d` is the discretization of this geometry, mesh and fibre
+/// layout.
+fn built_with(
+    d: &Discretization,
+    l0: f64,
+    area: f64,
+    resolution: Resolution,
+    axial_grading: f64,
+    fibres: FibreLayout,
+) -> bool {
+    d.l0 == l0
+        && d.area == area
+        && d.mesh.resolution == resolution
+        && d.mesh.axial_grading == axial_grading
+        && d.fibres == fibres
 }
 
 /// The step length of a rate mode (`None`: isometric).
@@ -688,8 +698,25 @@ impl<S: Scene> Model for HillFEModel<S> {
         }
     }
 
+    /// A committed muscle and step, built with the current geometry and
+    /// mesh parameters: after initialization these are fixed, so a state
+    /// in which they differ from the muscle's was not written by
+    /// [`Model::serialize`] of a stepping instance.
     fn is_initialized(&self) -> bool {
-        self.muscle.is_some() && self.last.is_some()
+        self.last.is_some()
+            && self.muscle.as_ref().is_some_and(|m| {
+                built_with(
+                    &m.disc,
+                    self.l0,
+                    self.area,
+                    Resolution {
+                        n_axial: self.n_axial as usize,
+                        n_radial: self.n_radial as usize,
+                    },
+                    self.axial_grading,
+                    self.layout(),
+                )
+            })
     }
 
     fn serialize(&self, out: &mut Vec<u8>) {

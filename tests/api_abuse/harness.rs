@@ -113,12 +113,6 @@
 //!
 //!    Accepted calls are checked too: `fmi2GetFMUstate` saves exactly the
 //!    current state, `fmi2SetFMUstate` restores exactly the saved one.
-//!
-//!    One known bug of the layer is tolerated, narrowly
-//!    ([`Harness::initialized_by_refusal`], regression test
-//!    `bug_refused_directional_derivative_computes_the_initial_values` in
-//!    `tests/api_abuse_fe.rs`): a refused `fmi2GetDirectionalDerivative` in
-//!    initialization mode may leave the initial values computed.
 //! 5. **The next legal call behaves as if the rejected one never
 //!    happened**: a twin instance receives the same sequence minus the
 //!    rejected calls (and minus the snapshots). Each call it receives must
@@ -136,11 +130,8 @@
 //!    when the sequence uses an FMU state saved before the reset (which the
 //!    fresh instance cannot have).
 //! 7. (Unless `API_ABUSE_ROUND_TRIP=0`.) Every state the FMU serializes is
-//!    accepted by the layer's deserializer — except the states a known,
-//!    documented bug of the subject makes undeserializable
-//!    ([`Subject::known_round_trip_bug`], each with an ignored regression
-//!    test in its crate); without it, intact serialized states must be
-//!    accepted by `fmi2DeSerializeFMUstate` whenever they decode. Each
+//!    accepted by the layer's deserializer (and so intact serialized states
+//!    by `fmi2DeSerializeFMUstate`). Each
 //!    distinct serialized state is decoded once per test thread (the
 //!    snapshot after a call is the one before the next).
 //!
@@ -211,7 +202,7 @@
 //! variadic pointer argument is passed like the next named argument.
 
 use std::cell::RefCell;
-use std::collections::HashMap;
+use std::collections::HashSet;
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::fmt;
 use std::ptr::{null, null_mut};
@@ -299,17 +290,6 @@ pub trait Subject {
     /// The outputs `fmi2GetDirectionalDerivative` differentiates (`None`:
     /// every Real output); any other unknown with a known is `fmi2Error`.
     const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]>;
-
-    /// `Some(regression test name)` when `err`, the deserializer's refusal
-    /// of these bytes the FMU serialized itself, is a known bug of the
-    /// subject (property 7). The default: none.
-    fn known_round_trip_bug(
-        _bytes: &[u8],
-        _layer: &LayerState,
-        _err: &str,
-    ) -> Option<&'static str> {
-        None
-    }
 }
 
 type M = <Sub as Subject>::M;
@@ -752,12 +732,12 @@ pub fn split_state(bytes: &[u8]) -> Result<(LayerState, &[u8]), String> {
 
 /// The layer's part of a snapshot ([`split_state`]). Unless
 /// `API_ABUSE_ROUND_TRIP=0`, every snapshot must also pass the layer's full
-/// `decode_state` (what `fmi2DeSerializeFMUstate` runs), or be refused by a
-/// known bug of the subject (module docs, property 7).
+/// `decode_state` (what `fmi2DeSerializeFMUstate` runs; module docs,
+/// property 7).
 fn layer_of(bytes: &[u8]) -> Result<LayerState, String> {
     let (layer, _) = split_state(bytes)?;
     if round_trip() {
-        round_trip_verdict(bytes, &layer)?;
+        round_trip_verdict(bytes)?;
     }
     Ok(layer)
 }
@@ -775,17 +755,12 @@ fn guid_str() -> &'static str {
 
 thread_local! {
     /// The serialized states this thread has decoded (key: the state's own
-    /// checksum, its last 8 bytes, and its length) and their verdict:
-    /// `None` decodes, `Some(test)` refused by the known bug of that
-    /// regression test.
-    static DECODED: RefCell<HashMap<(u64, usize), Option<&'static str>>> =
-        RefCell::new(HashMap::new());
+    /// checksum, its last 8 bytes, and its length).
+    static DECODED: RefCell<HashSet<(u64, usize)>> = RefCell::new(HashSet::new());
 }
 
-/// Whether bytes the FMU serialized itself decode: `Ok(None)`, or are
-/// refused by a known bug of the subject: `Ok(Some(test))`; `Err` for any
-/// other refusal.
-fn round_trip_verdict(bytes: &[u8], layer: &LayerState) -> Result<Option<&'static str>, String> {
+/// `Err` when bytes the FMU serialized itself do not decode.
+fn round_trip_verdict(bytes: &[u8]) -> Result<(), String> {
     let key = (
         bytes
             .len()
@@ -793,43 +768,29 @@ fn round_trip_verdict(bytes: &[u8], layer: &LayerState) -> Result<Option<&'stati
             .map_or(0, |n| u64::from_le_bytes(bytes[n..].try_into().unwrap())),
         bytes.len(),
     );
-    if let Some(v) = DECODED.with(|d| d.borrow().get(&key).copied()) {
-        return Ok(v);
+    if DECODED.with(|d| d.borrow().contains(&key)) {
+        return Ok(());
     }
-    let verdict = match decode_state::<M>(guid_str(), bytes) {
-        Ok(_) => None,
-        Err(e) => match Sub::known_round_trip_bug(bytes, layer, &e) {
-            Some(test) => Some(test),
-            None => {
-                return Err(format!(
-                    "the instance's serialized state does not deserialize: {e}"
-                ))
-            }
-        },
-    };
-    if let Some(test) = verdict {
-        stat(|| format!("~ known bug: a serialized state refused ({test})"));
+    if let Err(e) = decode_state::<M>(guid_str(), bytes) {
+        return Err(format!(
+            "the instance's serialized state does not deserialize: {e}"
+        ));
     }
     DECODED.with(|d| {
         let mut d = d.borrow_mut();
         if d.len() >= 100_000 {
             d.clear();
         }
-        d.insert(key, verdict);
+        d.insert(key);
     });
-    Ok(verdict)
+    Ok(())
 }
 
 /// Whether `fmi2DeSerializeFMUstate` must accept these bytes of a state the
-/// FMU serialized itself: with property 7 on, unless a known bug refuses
-/// them; with it off, when they decode.
+/// FMU serialized itself: always with property 7 on (the snapshot checks
+/// it); with it off, when they decode.
 fn decodes(bytes: &[u8]) -> bool {
-    if round_trip() {
-        let verdict = split_state(bytes).and_then(|(l, _)| round_trip_verdict(bytes, &l));
-        !matches!(verdict, Ok(Some(_)))
-    } else {
-        decode_state::<M>(guid_str(), bytes).is_ok()
-    }
+    round_trip() || decode_state::<M>(guid_str(), bytes).is_ok()
 }
 
 /// Recomputes the checksum of a serialized state after the header's body
@@ -2313,11 +2274,6 @@ impl Master {
 // The harness
 // ---------------------------------------------------------------------------
 
-/// The regression test (in `tests/api_abuse_fe.rs`: only a model that
-/// refuses some derivatives reaches it) of a known bug of the layer, which
-/// [`Harness::initialized_by_refusal`] recognises.
-const DERIVATIVE_BUG: &str = "bug_refused_directional_derivative_computes_the_initial_values";
-
 /// `API_ABUSE_STATS=1`: counts of (function, state before, status) and of
 /// the harness's comparisons, printed after the property tests.
 fn stats() -> Option<&'static Mutex<std::collections::BTreeMap<String, u64>>> {
@@ -2683,10 +2639,7 @@ impl Harness {
         let post_bytes = self.p.state_bytes()?;
         let is_step = matches!(call, Call::Step { .. });
         let keep = s == fmi2Error || (s == fmi2Discard && !is_step) || call.is_pure(pre.fmi_state);
-        if keep
-            && post_bytes != pre_bytes
-            && !self.initialized_by_refusal(env, &call, s, &pre, &post_bytes)?
-        {
+        if keep && post_bytes != pre_bytes {
             let post = layer_of(&post_bytes)?;
             let at = pre_bytes
                 .iter()
@@ -2831,61 +2784,6 @@ impl Harness {
             self.last_logging = Some(call);
         }
         Ok(s)
-    }
-
-    /// The known layer bug [`DERIVATIVE_BUG`]: an `fmi2GetDirectionalDerivative`
-    /// in initialization mode, after values were set, computes the initial
-    /// values (`ensure_initialized`) before the model refuses a derivative,
-    /// and keeps them. Recognised only exactly: the call is refused, the
-    /// layer changed only its dirty flag, and the followers (the twin, the
-    /// reset shadow), which do not receive the refused call, reach the same
-    /// serialized state by reading an output (which computes the initial
-    /// values) — so they stay in step with the primary.
-    fn initialized_by_refusal(
-        &mut self,
-        env: &Env,
-        call: &Call,
-        s: fmi2Status,
-        pre: &LayerState,
-        post_bytes: &[u8],
-    ) -> Result<bool, String> {
-        let post = layer_of(post_bytes)?;
-        if !(s == fmi2Error
-            && matches!(
-                call,
-                Call::DirDeriv {
-                    comp: Comp::Valid,
-                    ..
-                }
-            )
-            && pre.fmi_state == FmiState::InitializationMode
-            && pre.dirty
-            && post
-                == LayerState {
-                    dirty: false,
-                    ..*pre
-                })
-        {
-            return Ok(false);
-        }
-        let read = get(Ty::Real, table().outputs[..1].to_vec());
-        for (who, f) in [
-            ("twin", Some(&mut self.twin)),
-            ("reset shadow", self.shadow.as_mut()),
-        ] {
-            let Some(f) = f else { continue };
-            let o = exec(f, env, &read);
-            f.book.clear();
-            ensure!(
-                o.status == fmi2OK && f.state_bytes()? == post_bytes,
-                "{who}: the refused fmi2GetDirectionalDerivative changed the instance, \
-                 and not as computing the initial values does ({DERIVATIVE_BUG})"
-            );
-        }
-        stat(|| {
-            format!("~ known bug: a refused call computed the initial values ({DERIVATIVE_BUG})")
-        });
-        Ok(true)
     }
 
     /// End of a sequence: the twin, the shadow and the primary agree.
@@ -4748,8 +4646,7 @@ pub fn out_of_range_parameters_are_refused_naming_the_range() {
 /// unchanged); steps that stretch and shorten the muscle at full activation
 /// either complete with finite outputs and physical stretches (CE and SEE
 /// stretch > 0) and finite directional derivatives, or are discarded with a
-/// message; the FMU's own serialized state always deserializes (but for a
-/// known bug of the subject).
+/// message; the FMU's own serialized state always deserializes.
 pub fn every_parameter_at_either_bound_steps_and_round_trips() {
     let t = table();
     let vr = |n: &str| t.vars.iter().position(|v| v.name == n).unwrap() as u32;
@@ -4822,12 +4719,9 @@ pub fn every_parameter_at_either_bound_steps_and_round_trips() {
             }
         };
         f.book.clear();
-        let (st, log, bytes) = round_trip_status(&f);
+        let (st, log, _) = round_trip_status(&f);
         if st != fmi2OK {
-            let known = split_state(&bytes).and_then(|(l, _)| round_trip_verdict(&bytes, &l));
-            if !matches!(known, Ok(Some(_))) {
-                failures.push(format!("{name} = {value:?}: round trip {st:?} {log:?}"));
-            }
+            failures.push(format!("{name} = {value:?}: round trip {st:?} {log:?}"));
         }
     }
     if !refused.is_empty() {
