@@ -25,7 +25,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use super::instance::{decode_state, encode_state, Instance, LogCategory, LogSink};
 use super::model::{Causality, Model, ModelError, ScalarVariable, SetOutcome, StepError, VarType};
 use super::model_description::guid_for;
-use super::rules::{causality_name, is_computed, settable_in, type_name, variability_name};
+use super::rules::{causality_name, type_name, variability_name, Dispatch, ValueKind};
 use super::state::{self, FmiState, StateSet};
 use super::types::*;
 
@@ -151,14 +151,36 @@ fn lookup<'v, V>(
     func: &str,
     vr: fmi2ValueReference,
 ) -> Result<&'v ScalarVariable<V>, fmi2Status> {
-    vars.get(vr as usize).ok_or_else(|| {
-        log.error(&format!(
-            "{func}: unknown value reference {vr} (this FMU has {} variables, value references 0 to {})",
-            vars.len(),
-            vars.len().saturating_sub(1)
-        ));
-        fmi2Error
-    })
+    vars.get(vr as usize)
+        .ok_or_else(|| unknown_reference(vars.len(), log, func, vr))
+}
+
+/// The [`Dispatch`] entry of `vr` (the get and set functions' hot path).
+#[inline]
+fn dispatch_of<'d, V>(
+    dispatch: &'d [Dispatch<V>],
+    log: &LogSink,
+    func: &str,
+    vr: fmi2ValueReference,
+) -> Result<&'d Dispatch<V>, fmi2Status> {
+    dispatch
+        .get(vr as usize)
+        .ok_or_else(|| unknown_reference(dispatch.len(), log, func, vr))
+}
+
+/// Logs an unknown value reference.
+#[cold]
+fn unknown_reference(
+    n_vars: usize,
+    log: &LogSink,
+    func: &str,
+    vr: fmi2ValueReference,
+) -> fmi2Status {
+    log.error(&format!(
+        "{func}: unknown value reference {vr} (this FMU has {n_vars} variables, value references 0 to {})",
+        n_vars.saturating_sub(1)
+    ));
+    fmi2Error
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -179,35 +201,35 @@ impl Kind {
         }
     }
 
-    fn matches(self, ty: &VarType) -> bool {
+    /// Whether a variable of value type `v` is accessed by this kind's
+    /// functions (no variable is a String).
+    #[inline]
+    fn is(self, v: ValueKind) -> bool {
         matches!(
-            (self, ty),
-            (Kind::Real, VarType::Real { .. })
-                | (Kind::Integer, VarType::Integer { .. })
-                | (Kind::Boolean, VarType::Boolean { .. })
+            (self, v),
+            (Kind::Real, ValueKind::Real)
+                | (Kind::Integer, ValueKind::Integer)
+                | (Kind::Boolean, ValueKind::Boolean)
         )
     }
 }
 
-#[inline]
-fn check_kind<V>(
+/// Logs that `v` is not of the value type `kind`'s functions access.
+#[cold]
+fn wrong_kind<V>(
     log: &LogSink,
     func: &str,
     vr: fmi2ValueReference,
     v: &ScalarVariable<V>,
     kind: Kind,
-) -> Result<(), fmi2Status> {
-    if kind.matches(&v.ty) {
-        Ok(())
-    } else {
-        log.error(&format!(
-            "{func}: variable '{}' (value reference {vr}) is of type {}, not {}",
-            v.name,
-            type_name(&v.ty),
-            kind.name()
-        ));
-        Err(fmi2Error)
-    }
+) -> fmi2Status {
+    log.error(&format!(
+        "{func}: variable '{}' (value reference {vr}) is of type {}, not {}",
+        v.name,
+        type_name(&v.ty),
+        kind.name()
+    ));
+    fmi2Error
 }
 
 /// In initialization mode, make the outputs consistent with what was set
@@ -241,15 +263,23 @@ fn get_values<M: Model, T: Copy + std::fmt::Debug>(
     // First pass: validate (no allocation: this is the hot path).
     let mut needs_init = false;
     for &vr in vrs {
-        let v = lookup(&inst.vars, &inst.log, func, vr)?;
-        check_kind(&inst.log, func, vr, v, kind)?;
-        needs_init |= is_computed(v);
+        let d = dispatch_of(&inst.dispatch, &inst.log, func, vr)?;
+        if !kind.is(d.kind) {
+            return Err(wrong_kind(
+                &inst.log,
+                func,
+                vr,
+                &inst.vars[vr as usize],
+                kind,
+            ));
+        }
+        needs_init |= d.computed;
     }
     if needs_init {
         ensure_initialized(inst, func)?;
     }
     for (o, &vr) in out.iter_mut().zip(vrs) {
-        *o = read(&inst.model, inst.vars[vr as usize].id);
+        *o = read(&inst.model, inst.dispatch[vr as usize].id);
     }
     inst.log.debug(LogCategory::All, || {
         let items: Vec<String> = vrs
@@ -275,9 +305,12 @@ fn set_values<M: Model, T: Copy>(
     // First pass: every reference valid, of the right type and settable now,
     // before anything changes (no allocation: this is the hot path).
     for &vr in vrs {
-        let v = lookup(&inst.vars, &inst.log, func, vr)?;
-        check_kind(&inst.log, func, vr, v, kind)?;
-        if !settable_in(v, state) {
+        let d = dispatch_of(&inst.dispatch, &inst.log, func, vr)?;
+        let v = &inst.vars[vr as usize];
+        if !kind.is(d.kind) {
+            return Err(wrong_kind(&inst.log, func, vr, v, kind));
+        }
+        if !d.settable.contains(state) {
             inst.log.error(&format!(
                 "{func}: variable '{}' (causality = {}, variability = {}) cannot be set in state {}",
                 v.name,
@@ -761,7 +794,7 @@ pub unsafe fn get_string<M: Model>(
 }
 
 /// `fmi2SetReal` (FMI 2.0 spec, section 2.1.7). Which variables may be set
-/// in which state: [`settable_in`]. The model checks the value; a refused
+/// in which state: [`settable_in`](super::rules::settable_in). The model checks the value; a refused
 /// value is logged with the variable name, the value and the model's
 /// message (which states the valid range), and nothing is changed.
 /// `SetOutcome::Warning` gives `fmi2Warning`; its message is logged, and

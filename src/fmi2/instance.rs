@@ -12,6 +12,7 @@ use std::ffi::{CStr, CString};
 
 use super::bytes::{fnv1a64, ByteReader, ByteWriter, FNV64_OFFSET};
 use super::model::{Model, ModelInfo, ScalarVariable};
+use super::rules::Dispatch;
 use super::state::FmiState;
 use super::types::*;
 
@@ -277,6 +278,9 @@ pub struct Instance<M: Model> {
     /// Built once at `fmi2Instantiate` from [`Model::variables`];
     /// value reference = index.
     pub vars: Vec<ScalarVariable<M::Var>>,
+    /// [`Dispatch`] of each of `vars` (same index): what the get and set
+    /// functions check per value reference.
+    pub dispatch: Vec<Dispatch<M::Var>>,
     pub info: ModelInfo,
     pub guid: String,
     pub log: LogSink,
@@ -302,6 +306,7 @@ impl<M: Model> Instance<M> {
             magic: INSTANCE_MAGIC,
             type_id: TypeId::of::<M>(),
             model: M::new(),
+            dispatch: vars.iter().map(Dispatch::of).collect(),
             vars,
             info,
             guid,

@@ -5,7 +5,52 @@
 //! 3.2.3 and 4.2.4).
 
 use super::model::{Causality, Initial, ScalarVariable, VarType, Variability};
-use super::state::FmiState;
+use super::state::{FmiState, StateSet};
+
+/// The value type of a variable (what `fmi2GetReal`, `fmi2GetInteger`, ...
+/// may access).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ValueKind {
+    Real,
+    Integer,
+    Boolean,
+}
+
+impl ValueKind {
+    pub fn of(ty: &VarType) -> Self {
+        match ty {
+            VarType::Real { .. } => ValueKind::Real,
+            VarType::Integer { .. } => ValueKind::Integer,
+            VarType::Boolean { .. } => ValueKind::Boolean,
+        }
+    }
+}
+
+/// What the get and set functions need to know of one variable on their
+/// hot path, computed once per instance from the variable table (the rules
+/// of this module evaluated for every state), so that checking a value
+/// reference is a table look-up and two comparisons.
+#[derive(Clone, Copy, Debug)]
+pub struct Dispatch<V> {
+    /// The model's handle ([`ScalarVariable::id`]).
+    pub id: V,
+    pub kind: ValueKind,
+    /// The states in which the importer may set it ([`settable_in`]).
+    pub settable: StateSet,
+    /// [`is_computed`].
+    pub computed: bool,
+}
+
+impl<V: Copy> Dispatch<V> {
+    pub fn of(v: &ScalarVariable<V>) -> Self {
+        Dispatch {
+            id: v.id,
+            kind: ValueKind::of(&v.ty),
+            settable: StateSet::filter(|s| settable_in(v, s)),
+            computed: is_computed(v),
+        }
+    }
+}
 
 /// The `initial` attribute in force: the given one or the default of the
 /// FMI 2.0 table in section 2.2.7 for the causality/variability pair.
@@ -156,5 +201,82 @@ pub fn type_name(t: &VarType) -> &'static str {
         VarType::Real { .. } => "Real",
         VarType::Integer { .. } => "Integer",
         VarType::Boolean { .. } => "Boolean",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The per-instance dispatch table says what the rules say, for every
+    /// causality, variability, `initial` and value type, in every state.
+    #[test]
+    fn dispatch_agrees_with_the_rules() {
+        use Causality as C;
+        use Variability as V;
+        let types = [
+            VarType::Real {
+                unit: None,
+                start: Some(0.0),
+                min: None,
+                max: None,
+            },
+            VarType::Integer {
+                start: Some(0),
+                min: None,
+                max: None,
+            },
+            VarType::Boolean { start: Some(false) },
+        ];
+        let mut n = 0;
+        for causality in [
+            C::Parameter,
+            C::CalculatedParameter,
+            C::Input,
+            C::Output,
+            C::Local,
+            C::Independent,
+        ] {
+            for variability in [
+                V::Constant,
+                V::Fixed,
+                V::Tunable,
+                V::Discrete,
+                V::Continuous,
+            ] {
+                for initial in [
+                    None,
+                    Some(Initial::Exact),
+                    Some(Initial::Approx),
+                    Some(Initial::Calculated),
+                ] {
+                    for ty in &types {
+                        let v = ScalarVariable {
+                            name: "v",
+                            description: "",
+                            causality,
+                            variability,
+                            initial,
+                            ty: *ty,
+                            depends_on: vec![],
+                            id: n,
+                        };
+                        let d = Dispatch::of(&v);
+                        assert_eq!(d.id, n);
+                        assert_eq!(d.kind, ValueKind::of(ty));
+                        assert_eq!(d.computed, is_computed(&v));
+                        for s in FmiState::ALL {
+                            assert_eq!(
+                                d.settable.contains(s),
+                                settable_in(&v, s),
+                                "{v:?} in {s:?}"
+                            );
+                        }
+                        n += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(n, 6 * 5 * 4 * 3);
     }
 }

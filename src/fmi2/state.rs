@@ -21,6 +21,18 @@ pub enum FmiState {
 }
 
 impl FmiState {
+    /// Every state, in code order ([`FmiState::to_u8`]).
+    pub const ALL: [FmiState; 8] = [
+        FmiState::Instantiated,
+        FmiState::InitializationMode,
+        FmiState::StepComplete,
+        FmiState::StepFailed,
+        FmiState::StepCanceled,
+        FmiState::Terminated,
+        FmiState::Error,
+        FmiState::Fatal,
+    ];
+
     /// The name used in the FMI 2.0 state table.
     pub fn name(self) -> &'static str {
         match self {
@@ -75,8 +87,19 @@ impl StateSet {
         StateSet(bits)
     }
 
+    #[inline(always)]
     pub const fn contains(self, s: FmiState) -> bool {
         self.0 & s.bit() != 0
+    }
+
+    /// The states of [`FmiState::ALL`] for which `f` holds.
+    pub fn filter(f: impl Fn(FmiState) -> bool) -> Self {
+        StateSet(
+            FmiState::ALL
+                .iter()
+                .filter(|&&s| f(s))
+                .fold(0, |bits, s| bits | s.bit()),
+        )
     }
 }
 
@@ -133,6 +156,9 @@ mod tests {
             assert_eq!(FmiState::from_u8(s.to_u8()), Some(s));
         }
         assert_eq!(FmiState::from_u8(8), None);
+        for (i, s) in FmiState::ALL.iter().enumerate() {
+            assert_eq!(s.to_u8() as usize, i);
+        }
     }
 
     #[test]
