@@ -87,9 +87,9 @@
 //!      a rejection: the layer's error state (which a model's
 //!      `StepError::Error` would enter) is not reached by stepping —
 //!      `HillMuscle1D`'s `do_step` never returns it, `HillMuscleFE`'s only
-//!      for a model without a muscle, which `Model::new` never makes and
-//!      no state the FMU serializes has (a crafted one can: a bug, see
-//!      `tests/api_abuse_fe.rs`) — and a failed
+//!      for a model without a muscle, which `Model::new` never makes, no
+//!      state the FMU serializes has and the deserializer refuses after
+//!      initialization (`tests/api_abuse_fe.rs`) — and a failed
 //!      `fmi2ExitInitializationMode` leaves the instance in initialization
 //!      mode, unchanged (the `Model::initialize` contract).
 //!    - `fmi2Discard` from any function but `fmi2DoStep` (the status

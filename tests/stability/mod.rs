@@ -489,6 +489,10 @@ pub struct ModelEntry {
     pub select: fn(&Cell) -> bool,
     /// Whether the CI subset (`tests/stability_subset.rs`) runs this model.
     pub in_ci_subset: bool,
+    /// Whether the CI subset also requires agreement with the run at h/100
+    /// (beyond the issue's acceptance criteria): for a model that controls
+    /// its time error. Otherwise the deviations are reported, not asserted.
+    pub time_error_controlled: bool,
 }
 
 /// The models of the matrix. A model joins with one entry: its runner
@@ -500,6 +504,8 @@ pub fn models() -> Vec<ModelEntry> {
             run: |c, w| run_cell::<Hill1D>(c, w, &HILL1D_HOOKS),
             select: |_| true,
             in_ci_subset: true,
+            // Error-controlled substeps of the CE–SEE update (issue 4 §2).
+            time_error_controlled: true,
         },
         // Only with the `fe` feature (on by default).
         #[cfg(feature = "fe")]
@@ -507,9 +513,18 @@ pub fn models() -> Vec<ModelEntry> {
             name: "HillMuscleFE",
             run: |c, w| run_cell::<HillFE>(c, w, &HILLFE_HOOKS),
             select: fe_cell,
-            // Its 11 cells of the CI subset pass (about 20 s); the full
-            // matrix's report lists the cells it fails (docs/stability.md).
+            // Its 11 cells of the CI subset meet the acceptance criteria
+            // (about 20 s); the full matrix's report lists the cells it
+            // fails (docs/stability.md).
             in_ci_subset: true,
+            // One backward-Euler step of the CE–SEE update per
+            // communication step (substeps only when Newton does not
+            // converge, whose directional derivatives are those of the last
+            // substep): first order in h, no error control, so at h >= 1e-2
+            // s with S h >= 0.5 or alpha = 1000 it deviates from the run at
+            // h/100 by more than AGREEMENT_TOL (92 of its 149 compared cells
+            // of the full matrix, docs/stability.md).
+            time_error_controlled: false,
         },
     ]
 }
