@@ -587,6 +587,12 @@ pub unsafe fn setup_experiment<M: Model>(
                     .error(&format!("{F}: startTime = {start_time:?} is not finite"));
                 return Err(fmi2Error);
             }
+            if tolerance_defined != fmi2False && !(tolerance.is_finite() && tolerance >= 0.0) {
+                inst.log.error(&format!(
+                    "{F}: tolerance = {tolerance:?} (toleranceDefined = fmi2True) must be finite and >= 0"
+                ));
+                return Err(fmi2Error);
+            }
             let stop = if stop_time_defined != fmi2False {
                 if !stop_time.is_finite() || stop_time < start_time {
                     inst.log.error(&format!(

@@ -504,6 +504,11 @@ pub fn decode_state<M: Model>(guid: &str, data: &[u8]) -> Result<Snapshot<M>, St
             return Err(format!("malformed FMU state: {name} = {v} is not finite"));
         }
     }
+    if tol_defined && !(tol.is_finite() && tol >= 0.0) {
+        return Err(format!(
+            "malformed FMU state: tolerance {tol} must be finite and >= 0"
+        ));
+    }
     if stop_defined && !(stop.is_finite() && stop >= start_time) {
         return Err(format!(
             "malformed FMU state: stop time {stop} must be finite and >= the start time {start_time}"

@@ -2013,12 +2013,17 @@ fn expect(call: &Call, pre: &LayerState, f: &Fmu) -> Expect {
     let settable = |vr: u32| var(vr).is_some_and(|v| settable_in(v, state));
     match call {
         Call::Setup {
+            tol_def,
+            tol,
             start,
             stop_def,
             stop,
             ..
         } => {
-            if !start.is_finite() || (*stop_def != 0 && !(stop.is_finite() && stop >= start)) {
+            if !start.is_finite()
+                || (*stop_def != 0 && !(stop.is_finite() && stop >= start))
+                || (*tol_def != 0 && !(tol.is_finite() && *tol >= 0.0))
+            {
                 Reject
             } else {
                 Accept
@@ -4788,6 +4793,47 @@ pub fn deserialized_state_with_non_finite_time_is_refused() {
     }
 }
 
+/// Found by the long run (`API_ABUSE_CASES=1000000`, seed 0x4d75_7363_6c65):
+/// `fmi2SetupExperiment(toleranceDefined = fmi2True, tolerance = NaN)` was
+/// accepted, and the NaN kept in the layer (a state the layer cannot
+/// compare with itself). Now a defined tolerance that is not finite and at
+/// least 0 is `fmi2Error` naming it, nothing changed, and a crafted state
+/// holding one is refused; an undefined tolerance is ignored whatever its
+/// value, and 0 is accepted.
+pub fn setup_experiment_with_a_non_finite_tolerance_is_refused() {
+    for tol in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -1e-6] {
+        let f = Fmu::new(false);
+        let before = f.state_bytes().unwrap();
+        let st = unsafe { api::setup_experiment::<M>(f.c, fmi2True, tol, 0.0, fmi2False, 0.0) };
+        let log = f.book.take();
+        assert_eq!(st, fmi2Error, "tolerance {tol}");
+        assert!(
+            log.iter().any(|e| e.message.contains("tolerance = ")),
+            "{log:?}"
+        );
+        assert!(f.state_bytes().unwrap() == before, "tolerance {tol}");
+        // The same value in a serialized state (checksum recomputed).
+        let mut b = before.clone();
+        let at = state_code_offset() + 1 + 8 + 8 + 1 + 8; // time, start, stop flag, stop
+        assert_eq!(b[at], 0, "the layout changed");
+        b[at] = 1;
+        b[at + 1..at + 9].copy_from_slice(&tol.to_le_bytes());
+        fix_checksum(&mut b);
+        let e = decode_state::<M>(guid_str(), &b).err();
+        assert!(
+            e.is_some_and(|e| e.contains("tolerance")),
+            "tolerance {tol} decodes"
+        );
+    }
+    for (defined, tol) in [(fmi2False, f64::NAN), (fmi2True, 0.0), (fmi2True, 1e-6)] {
+        let f = Fmu::new(false);
+        let st = unsafe { api::setup_experiment::<M>(f.c, defined, tol, 0.0, fmi2False, 0.0) };
+        assert_eq!(st, fmi2OK, "toleranceDefined {defined}, tolerance {tol}");
+        let (rt, log, _) = round_trip_status(&f);
+        assert_eq!(rt, fmi2OK, "{log:?}");
+    }
+}
+
 // ---------------------------------------------------------------------------
 // The tests, defined at the root of each test crate
 // ---------------------------------------------------------------------------
@@ -4822,7 +4868,8 @@ macro_rules! harness_tests {
             out_of_range_parameters_are_refused_naming_the_range,
             every_parameter_at_either_bound_steps_and_round_trips,
             tiny_step_leaves_a_serializable_state,
-            deserialized_state_with_non_finite_time_is_refused
+            deserialized_state_with_non_finite_time_is_refused,
+            setup_experiment_with_a_non_finite_tolerance_is_refused
         );
     };
     (@each $attrs:tt $name:ident $(, $rest:ident)*) => {

@@ -442,3 +442,27 @@ def test_step_past_the_stop_time_is_rejected(muscle):
     assert exc.value.status == fmi2Error
     assert any("stop" in msg.lower() for msg in messages(a, fmi2Error)), a.log
     assert a.output_vector() == before
+
+
+@pytest.mark.parametrize("args, name", [
+    (dict(tolerance=float("nan")), "tolerance"),
+    (dict(tolerance=-1e-6), "tolerance"),
+    (dict(startTime=float("inf")), "startTime"),
+    (dict(stopTime=-1.0), "stopTime"),
+])
+def test_bad_setup_experiment_is_rejected(muscle, args, name):
+    """fmi2SetupExperiment with a non-finite start time, a stop time before
+    the start, or a defined tolerance that is not finite and >= 0: fmi2Error
+    naming the argument; the instance then initializes and runs like an
+    untouched one."""
+    a = muscle(log=[], initialize=False)
+    call = {"tolerance": None, "startTime": 0.0, "stopTime": None, **args}
+    with pytest.raises(FMICallException) as exc:
+        a.slave.setupExperiment(**call)
+    assert exc.value.status == fmi2Error
+    assert any(name in msg for msg in messages(a, fmi2Error)), a.log
+    a.initialize()
+    b = muscle()
+    drive(a, 20)
+    drive(b, 20)
+    assert a.output_vector() == b.output_vector()
