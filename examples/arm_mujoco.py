@@ -82,11 +82,16 @@ u = 0 until 0.05 s, a step u = 0.6 until the elbow passes 0.5 * target (or
 - kd angle_rate, 0, 1), target 90 deg (u_hold = 0.40, kp = 2.0 /rad,
 kd = 0.4 s/rad).
 
-Stability check (``stability``): a run is flagged unstable when a value goes
-non-finite, the FMU rejects a step, |force| exceeds 5x the maximum isometric
-force, the angle leaves [-0.5, 3.2] rad, or the hold phase's oscillation
-energy grows (kinetic energy at the end > 4x that at the start of the last
-half). The run stops at the first flag and returns what it has, no exception.
+Stability check (``stability``): a run is flagged unstable when its
+oscillation energy grows — during the run, when three successive peaks of the
+arm's kinetic energy each exceed the one before by 1.5x and the last is 4x
+the first (and above 1 mJ); at the end, when the kinetic energy at the end of
+the hold phase is > 4x that at its start — or when a value goes non-finite,
+the FMU rejects a step, |force| exceeds 5x the maximum isometric force, or
+the angle leaves [-0.5, 3.2] rad. The energy test comes first, so a
+coupling instability is reported as what it is (the zero-order hold pumping
+energy into the arm) before it blows up. The run stops at the first flag and
+returns what it has, no exception.
 
 Experiments (``EXPERIMENTS``): ``flex_hold`` (the controller above, 1 s),
 ``hold`` (open loop, constant command 0.4 at 90 deg with a 1 rad/s kick: the
@@ -511,10 +516,33 @@ def _flag(rec, i, H, f_max):
     vals = [rec[k][i] for k in ("angle", "length", "force", "kinetic")]
     if not all(np.isfinite(vals)):
         return f"non-finite value at t = {i * H:.4g} s"
+    growing = _growing_peaks(rec["kinetic"][: i + 1])
+    if growing:
+        return f"kinetic energy grows from one oscillation to the next ({growing}) by t = {i * H:.4g} s"
     if abs(rec["force"][i]) > 5 * f_max:
         return f"|force| = {abs(rec['force'][i]):.4g} N > 5 F_max at t = {i * H:.4g} s"
     if not -0.5 <= rec["angle"][i] <= 3.2:
         return f"angle {rec['angle'][i]:.4g} rad out of range at t = {i * H:.4g} s"
+    return ""
+
+
+def _growing_peaks(ke, factor=1.5, overall=4.0, floor=1e-3):
+    """The last three peaks of the kinetic energy (interior local maxima, and
+    the last sample when it exceeds the one before), as text, when each
+    exceeds the one before by ``factor``, the last is ``overall`` times the
+    first and above ``floor`` J; else "". """
+    ke = np.asarray(ke, dtype=float)
+    if ke.size < 3:
+        return ""
+    inner = np.flatnonzero((ke[1:-1] > ke[:-2]) & (ke[1:-1] >= ke[2:])) + 1
+    peaks = list(ke[inner])
+    if ke[-1] > ke[-2]:
+        peaks.append(ke[-1])
+    if len(peaks) < 3:
+        return ""
+    a, b, c = peaks[-3:]
+    if b > factor * a and c > factor * b and c > overall * a and c > floor:
+        return f"peaks {a:.3g}, {b:.3g}, {c:.3g} J"
     return ""
 
 

@@ -93,17 +93,32 @@ def test_linearly_implicit_more_accurate_than_explicit(hold_errors):
 
 def test_explicit_beyond_stable_step_is_flagged(fmu_path):
     """Stiff variant at H = 112 ms: the explicit scheme diverges (stable up
-    to 96 ms); the run is flagged and returns, it does not raise. The linearly
-    implicit and the iterated schemes stay stable at that step."""
+    to 96 ms); the run is flagged as energy growth — the kinetic energy's
+    peaks grow from one oscillation to the next — before the force leaves
+    its bound, and returns, it does not raise. The linearly implicit and the
+    iterated schemes stay stable at that step."""
     r = am.run("hold_stiff", "explicit", 112e-3, t_end=2.0, fmu=fmu_path)
     assert not r.stable
-    assert r.reason
+    assert "kinetic energy grows" in r.reason, r.reason
+    n = int(np.sum(np.isfinite(r.t)))
+    assert n < len(r.t), "the run should stop at the flag"
+    assert np.all(np.abs(r.force[:n]) < 5 * am.F_MAX), "flagged only after the force blew up"
     ok = am.run("hold_stiff", "explicit", 96e-3, t_end=2.0, fmu=fmu_path)
     assert ok.stable, ok.reason
     for scheme in ("implicit", "iterated"):
         r = am.run("hold_stiff", scheme, 112e-3, t_end=2.0, fmu=fmu_path)
         assert r.stable, (scheme, r.reason)
         assert np.max(np.abs(r.force)) < 2 * am.F_MAX
+
+
+def test_growing_peaks_flag_a_growing_oscillation_only():
+    t = np.linspace(0, 2, 401)
+    growing = 0.01 * np.exp(3 * t) * np.sin(10 * t) ** 2  # peaks 2.6x apart
+    decaying = 0.5 * np.exp(-2 * t) * np.sin(10 * t) ** 2
+    assert am._growing_peaks(growing)
+    assert not am._growing_peaks(decaying)
+    assert not am._growing_peaks(1e-7 * np.exp(3 * t) * np.sin(10 * t) ** 2)  # below the floor
+    assert not am._growing_peaks(np.linspace(0, 1, 50))  # a monotone rise is one peak
 
 
 def test_energy_growth_check_flags_synthetic_oscillation():
