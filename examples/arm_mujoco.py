@@ -858,6 +858,9 @@ def main(argv=None):
             p.error(str(exc))
         results.append(r)
         finite = np.flatnonzero(np.isfinite(r.angle))
+        if finite.size == 0:  # stopped before its first sample (e.g. refused at initialization)
+            print(f"{s:10s} H = {step:g} s: stable={r.stable} {r.reason} (no sample recorded)")
+            continue
         last = int(finite[-1])
         fmu_ms = 1e3 * r.extra["fmu_wall"] / max(1, r.extra["fmu_steps"])
         print(f"{s:10s} H = {step:g} s: stable={r.stable} {r.reason} angle at t = {r.t[last]:.3g} s: "

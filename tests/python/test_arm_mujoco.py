@@ -178,14 +178,14 @@ def test_fe_coupled_run(fmu_path):
     MuJoCo steps), linearly implicit with the FE's d force / d length: 0.3 s
     of the flex-and-hold run (rest, activation step at 0.05 s, flexion), on
     the coarsest mesh (FE_TEST_MESH, 108 tetrahedra) to keep the test short
-    (measured 1.7 s of coupled run; on the default 864-tetrahedron mesh an
-    FE step costs 0.4-0.8 s on this loaded machine).
+    (on the default 2,592-tetrahedron mesh a 10 ms FE step of the arm costs
+    1.2-1.6 s, 2026-12-01).
 
-    Not covered (measured with the FE build of 2026-11-22, reported in
-    docs/coupling.md): later in the run, when the command has dropped to 0
-    and the muscle is compressed (L/L0 ~ 0.92-0.93, compressive force), every
-    scheme's FE step is discarded (no convergence in 64 substeps) at
-    t = 0.42-0.43 s; the run stops there and reports it."""
+    Not covered (measured 2026-12-01, reported in docs/coupling.md): later
+    in the run, when the command has dropped to 0 and the muscle is
+    compressed (L/L0 ~ 0.93-0.94, compressive force), every scheme's FE step
+    is discarded (no convergence in 64 substeps within the work budget) at
+    t = 0.40-0.43 s; the run stops there and reports it."""
     t_end = 0.3
     r = am.run("flex_hold", "implicit", am.FE_STEP, t_end=t_end, fmu=FE_PATH, mesh=FE_TEST_MESH)
     one_d = am.run("flex_hold", "implicit", am.FE_STEP, t_end=t_end, fmu=fmu_path)
