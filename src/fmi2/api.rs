@@ -1354,6 +1354,13 @@ pub unsafe fn do_step<M: Model>(
                 ));
                 return Err(fmi2Error);
             }
+            if !(tc + h).is_finite() {
+                inst.log.error(&format!(
+                    "{F}: the step from {tc:?} with communicationStepSize = {h:?} ends at {:?}, not a finite time",
+                    tc + h
+                ));
+                return Err(fmi2Error);
+            }
             if let Some(stop) = inst.layer.stop_time {
                 if tc + h > stop + tol {
                     inst.log.error(&format!(

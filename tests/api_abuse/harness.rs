@@ -2199,6 +2199,9 @@ fn step_expect(tc: f64, h: f64, pre: &LayerState) -> Expect {
     if t.is_finite() && (tc - t).abs() > 2.0 * tol {
         return Reject;
     }
+    if !(tc + h).is_finite() {
+        return Reject;
+    }
     if let Some(stop) = pre.stop_time {
         if tc + h > stop + 2.0 * tol {
             return Reject;
@@ -4793,6 +4796,42 @@ pub fn deserialized_state_with_non_finite_time_is_refused() {
     }
 }
 
+/// Found by the second long run (`API_ABUSE_CASES=1000000`, default seed,
+/// after 2,882 s): `fmi2SetupExperiment(startTime = f64::MAX, stopTime =
+/// f64::MAX)`, initialization, `fmi2DoStep(f64::MAX, 1e300)` completed with
+/// `fmi2OK` and the FMU time +inf (the stop-time test `tc + h > stop + tol`
+/// is false when both sides overflow), a state the FMU's own deserializer
+/// refuses. Now a step whose end `tc + h` is not finite is `fmi2Error`
+/// naming it, nothing changed; the largest finite step from there is not.
+pub fn a_step_to_an_infinite_time_is_refused() {
+    let f = Fmu::new(false);
+    let t0 = f64::MAX / 2.0;
+    unsafe {
+        assert_eq!(
+            api::setup_experiment::<M>(f.c, fmi2False, 0.0, t0, fmi2True, f64::MAX),
+            fmi2OK
+        );
+        assert_eq!(api::enter_initialization_mode::<M>(f.c), fmi2OK);
+        set_integers(f.c, Sub::CHEAP_INTEGERS).unwrap();
+        assert_eq!(api::exit_initialization_mode::<M>(f.c), fmi2OK);
+    }
+    let before = f.state_bytes().unwrap();
+    f.book.clear();
+    let st = unsafe { api::do_step::<M>(f.c, t0, f64::MAX, 0) };
+    let log = f.book.take();
+    assert_eq!(st, fmi2Error, "{log:?}");
+    assert!(
+        log.iter().any(|e| e.message.contains("not a finite time")),
+        "{log:?}"
+    );
+    assert!(f.state_bytes().unwrap() == before);
+    // A finite end (f64::MAX itself) is a legal step.
+    let st = unsafe { api::do_step::<M>(f.c, t0, f64::MAX - t0, 0) };
+    assert!(st == fmi2OK || st == fmi2Discard, "{st:?}");
+    let (rt, log, _) = round_trip_status(&f);
+    assert_eq!(rt, fmi2OK, "{log:?}");
+}
+
 /// Found by the long run (`API_ABUSE_CASES=1000000`, seed 0x4d75_7363_6c65):
 /// `fmi2SetupExperiment(toleranceDefined = fmi2True, tolerance = NaN)` was
 /// accepted, and the NaN kept in the layer (a state the layer cannot
@@ -4868,6 +4907,7 @@ macro_rules! harness_tests {
             out_of_range_parameters_are_refused_naming_the_range,
             every_parameter_at_either_bound_steps_and_round_trips,
             tiny_step_leaves_a_serializable_state,
+            a_step_to_an_infinite_time_is_refused,
             deserialized_state_with_non_finite_time_is_refused,
             setup_experiment_with_a_non_finite_tolerance_is_refused
         );

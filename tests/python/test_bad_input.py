@@ -466,3 +466,16 @@ def test_bad_setup_experiment_is_rejected(muscle, args, name):
     drive(a, 20)
     drive(b, 20)
     assert a.output_vector() == b.output_vector()
+
+
+def test_step_to_an_infinite_time_is_rejected(muscle):
+    """A step whose end time overflows (t = 1e308, h = 1e308): fmi2Error
+    naming it; the instance keeps its outputs and its time."""
+    a = muscle(log=[], initialize=False)
+    a.initialize(start_time=1e308)
+    before = a.output_vector()
+    with pytest.raises(FMICallException) as exc:
+        a.slave.doStep(1e308, 1e308)
+    assert exc.value.status == fmi2Error
+    assert any("not a finite time" in msg for msg in messages(a, fmi2Error)), a.log
+    assert a.output_vector() == before
