@@ -329,6 +329,27 @@ impl Discretization {
         if !tangent {
             return self.residual(p, x, activation, start, rate);
         }
+        self.evaluate_tangent(p, x, activation, start, rate, None)
+    }
+
+    /// [`Self::evaluate`] with the tangent, its initial-stress (geometric)
+    /// part formed with the nodal pressures `pressure` when given, instead of
+    /// those of the nodal volume ratios at `x`, U_J'(J_a(x)): the tangent of
+    /// the mixed displacement–pressure problem (pressures as unknowns, the
+    /// constraint U_J'(J_a) = p_a as equations), condensed — the matrix of
+    /// the Newton iteration that carries the pressures as unknowns
+    /// ([`crate::fe::newton`], "Pressures"). The forces are those of `x`
+    /// either way.
+    pub(crate) fn evaluate_tangent(
+        &self,
+        p: &Params,
+        x: &[f64],
+        activation: f64,
+        start: &[FibreHistory],
+        rate: FibreRate,
+        pressure_override: Option<&[f64]>,
+    ) -> Result<Evaluation, String> {
+        let tangent = true;
         let ne = self.n_elements();
         let nn = self.n_nodes();
         // Pass 1: element volumes, nodal volume ratios and pressures.
@@ -401,15 +422,15 @@ impl Discretization {
             };
             // The pressure the element carries: the mean of its nodal
             // pressures p̄_e, or (plain tetrahedron) U_J'(J_e) of its own J.
+            let mean = |pr: &[f64]| 0.25 * (pr[tet[0]] + pr[tet[1]] + pr[tet[2]] + pr[tet[3]]);
             let (p_bar, bulk_e) = match self.volumetric {
-                Volumetric::NodalAverage => (
-                    0.25 * (pressure[tet[0]]
-                        + pressure[tet[1]]
-                        + pressure[tet[2]]
-                        + pressure[tet[3]]),
-                    0.0,
-                ),
+                Volumetric::NodalAverage => (mean(&pressure), 0.0),
                 Volumetric::Element => volumetric_derivatives(v / reference.volume, p.d_comp),
+            };
+            // The pressure of the initial-stress part of the tangent.
+            let p_geometric = match (self.volumetric, pressure_override) {
+                (Volumetric::NodalAverage, Some(pr)) => mean(pr),
+                _ => p_bar,
             };
             let s = stress.tau * reference.volume + Matrix3::identity() * (p_bar * v);
             for (b, &node) in tet.iter().enumerate() {
@@ -447,7 +468,8 @@ impl Discretization {
                 // tetrahedron (U_J''(J_e)/V_e) (v_e ∇N_b) ⊗ (v_e ∇N_c).
                 for b in 0..4 {
                     for c in 0..4 {
-                        let h = (g[b] * g[c].transpose() - g[c] * g[b].transpose()) * (p_bar * v)
+                        let h = (g[b] * g[c].transpose() - g[c] * g[b].transpose())
+                            * (p_geometric * v)
                             + g[b] * g[c].transpose() * (bulk_e * v * v / reference.volume);
                         for i in 0..3 {
                             for j in 0..3 {
@@ -485,6 +507,47 @@ impl Discretization {
             volume: volumes.iter().sum(),
             j_nodal_range,
         })
+    }
+
+    /// The nodal pressures at `x`, U_J'(J_a), and linearised about `x` at
+    /// `x + dx`: U_J'(J_a) + U_J''(J_a) ΔJ_a, ΔJ_a = (1/V_a) Σ_{e∋a} (v_e/4)
+    /// Σ_b ∇N_b·Δx_b (∇N_b the spatial shape gradients at `x`) — the
+    /// pressures the linearised constraint predicts, without the
+    /// second-order volume change ([`crate::fe::newton`], "Pressures").
+    pub(crate) fn linearised_pressures(
+        &self,
+        p: &Params,
+        x: &[f64],
+        dx: &[f64],
+    ) -> Result<(Vec<f64>, Vec<f64>), String> {
+        let nn = self.n_nodes();
+        let mut volume = vec![0.0; nn];
+        let mut change = vec![0.0; nn];
+        for (e, tet) in self.mesh.tets.iter().enumerate() {
+            let pts = self.element_points(x, e);
+            let (g, v) = crate::fe::element::shape_gradients(&pts);
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(format!("element {e} inverted or degenerate"));
+            }
+            let dv: f64 = tet
+                .iter()
+                .zip(&g)
+                .map(|(&a, gb)| gb[0] * dx[3 * a] + gb[1] * dx[3 * a + 1] + gb[2] * dx[3 * a + 2])
+                .sum::<f64>()
+                * v;
+            for &a in tet {
+                volume[a] += 0.25 * v;
+                change[a] += 0.25 * dv;
+            }
+        }
+        let (mut current, mut predicted) = (Vec::with_capacity(nn), Vec::with_capacity(nn));
+        for a in 0..nn {
+            let v_ref = self.nodal_reference[a];
+            let (uj, ujj) = volumetric_derivatives(volume[a] / v_ref, p.d_comp);
+            current.push(uj);
+            predicted.push(uj + ujj * change[a] / v_ref);
+        }
+        Ok((current, predicted))
     }
 
     /// The axial reaction on the moved face.
@@ -919,6 +982,7 @@ impl Muscle {
                 activation,
                 start: m.history.clone(),
                 rate: FibreRate::Isometric,
+                pressure: None,
             }))),
             trend: Trend::default(),
             ..m

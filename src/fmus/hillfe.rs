@@ -778,7 +778,8 @@ impl<S: Scene> Model for HillFEModel<S> {
                             .f64s(&a.x)
                             .f64(a.activation)
                             .f64s(&hist(&a.start))
-                            .f64s(rate_step(a.rate).as_slice());
+                            .f64s(rate_step(a.rate).as_slice())
+                            .f64s(a.pressure.as_deref().unwrap_or(&[]));
                     }
                     None => {
                         w.bool(false);
@@ -947,11 +948,17 @@ impl<S: Scene> Model for HillFEModel<S> {
                 if !activation.is_finite() {
                     return Err(bad("a non-finite anchor activation".into()));
                 }
+                let pressure = match r.f64s()? {
+                    v if v.is_empty() => None,
+                    v if v.len() == disc.n_nodes() && v.iter().all(|p| p.is_finite()) => Some(v),
+                    v => return Err(bad(format!("{} anchor pressure values", v.len()))),
+                };
                 Some(Arc::new(TangentCache::new(Anchor {
                     x: ax,
                     activation,
                     start,
                     rate,
+                    pressure,
                 })))
             } else {
                 None
