@@ -4,8 +4,8 @@
 Each case is a fresh ``HillMuscleFE`` instance initialized at rest (L0 = 5 cm,
 u = 0), then one ``doStep`` of ``--h`` seconds to L0 (1 + jump), passive. It
 prints the step's linear solves (the ``newton_iterations`` output: Newton
-corrections summed over all attempts that made up the step), its wall time
-and the force, for each compressibility D::
+corrections of the step's attempts, failed continuation and substep tries
+not counted), its wall time and the force, for each compressibility D::
 
     python examples/fe_step_jumps.py                       # D = 1e-9, jumps -5 % .. 5 %
     python examples/fe_step_jumps.py --D 1e-9,1e-7 --jumps 0.01,0.05

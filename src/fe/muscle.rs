@@ -521,25 +521,23 @@ impl Discretization {
         dx: &[f64],
     ) -> Result<(Vec<f64>, Vec<f64>), String> {
         let nn = self.n_nodes();
-        let mut volume = vec![0.0; nn];
-        let mut change = vec![0.0; nn];
+        let ne = self.n_elements();
+        let (mut volumes, mut changes) = (Vec::with_capacity(ne), Vec::with_capacity(ne));
         for (e, tet) in self.mesh.tets.iter().enumerate() {
-            let pts = self.element_points(x, e);
-            let (g, v) = crate::fe::element::shape_gradients(&pts);
+            let (g, v) = crate::fe::element::shape_gradients(&self.element_points(x, e));
             if !(v > 0.0 && v.is_finite()) {
                 return Err(format!("element {e} inverted or degenerate"));
             }
-            let dv: f64 = tet
+            let div: f64 = tet
                 .iter()
                 .zip(&g)
                 .map(|(&a, gb)| gb[0] * dx[3 * a] + gb[1] * dx[3 * a + 1] + gb[2] * dx[3 * a + 2])
-                .sum::<f64>()
-                * v;
-            for &a in tet {
-                volume[a] += 0.25 * v;
-                change[a] += 0.25 * dv;
-            }
+                .sum();
+            volumes.push(v);
+            changes.push(v * div);
         }
+        let volume = nodal_volumes(nn, &self.mesh.tets, &volumes);
+        let change = nodal_volumes(nn, &self.mesh.tets, &changes);
         let (mut current, mut predicted) = (Vec::with_capacity(nn), Vec::with_capacity(nn));
         for a in 0..nn {
             let v_ref = self.nodal_reference[a];
