@@ -349,7 +349,6 @@ impl Discretization {
         rate: FibreRate,
         pressure_override: Option<&[f64]>,
     ) -> Result<Evaluation, String> {
-        let tangent = true;
         let ne = self.n_elements();
         let nn = self.n_nodes();
         // Pass 1: element volumes, nodal volume ratios and pressures.
@@ -382,16 +381,8 @@ impl Discretization {
         // its nodes are (V_e τ_iso + p̄_e v_e I) ∇N_b (module docs of
         // [`crate::fe::element`]), with the spatial gradients ∇N_b of pass 1.
         let mut forces = vec![0.0; 3 * nn];
-        let mut d_activation = if tangent {
-            vec![0.0; 3 * nn]
-        } else {
-            Vec::new()
-        };
-        let mut values = if tangent {
-            Some(self.pattern.zeros())
-        } else {
-            None
-        };
+        let mut d_activation = vec![0.0; 3 * nn];
+        let mut values = self.pattern.zeros();
         let mut elements = Vec::with_capacity(ne);
         for e in 0..ne {
             let tet = &self.mesh.tets[e];
@@ -399,26 +390,19 @@ impl Discretization {
             let reference = &self.references[e];
             let (g, v) = (&grads[e], volumes[e]);
             let f = reference.deformation_gradient(&pts);
-            let j = f.determinant();
             let dir = &self.mesh.fibre[e];
-            // The law: stress only for a residual, with its tangent pieces
-            // for a tangent (the same arithmetic, so the same stress).
-            let (stress, point) = if tangent {
-                let point = LawPoint::new(p, &f, dir, activation, &start[e], rate);
-                let stress = IsochoricStress {
-                    tau: point.kirchhoff_isochoric(),
-                    j: point.j,
-                    lambda_f: point.lambda_f,
-                    fibre: FibreStress {
-                        w: point.fibre.w,
-                        sigma_see: point.fibre.sigma_see,
-                        history: point.fibre.history,
-                    },
-                };
-                (stress, Some(point))
-            } else {
-                let stress = IsochoricStress::new(p, &f, j, dir, activation, &start[e], rate);
-                (stress, None)
+            // The law with its tangent pieces (the same arithmetic as the
+            // residual's stress-only `IsochoricStress::new`, so the same stress).
+            let point = LawPoint::new(p, &f, dir, activation, &start[e], rate);
+            let stress = IsochoricStress {
+                tau: point.kirchhoff_isochoric(),
+                j: point.j,
+                lambda_f: point.lambda_f,
+                fibre: FibreStress {
+                    w: point.fibre.w,
+                    sigma_see: point.fibre.sigma_see,
+                    history: point.fibre.history,
+                },
             };
             // The pressure the element carries: the mean of its nodal
             // pressures p̄_e, or (plain tetrahedron) U_J'(J_e) of its own J.
@@ -454,7 +438,7 @@ impl Discretization {
                 history: stress.fibre.history,
                 sigma_see: stress.fibre.sigma_see,
             });
-            if let (Some(values), Some(point)) = (values.as_mut(), point) {
+            {
                 let dtau_da = point.kirchhoff_activation_derivative();
                 for (b, &node) in tet.iter().enumerate() {
                     let fa = dtau_da * g[b] * reference.volume;
@@ -478,10 +462,10 @@ impl Discretization {
                         }
                     }
                 }
-                self.pattern.add_element(values, e, tet, &k);
+                self.pattern.add_element(&mut values, e, tet, &k);
             }
         }
-        if let (Some(values), Volumetric::NodalAverage) = (values.as_mut(), self.volumetric) {
+        if self.volumetric == Volumetric::NodalAverage {
             // Σ_a (U_J''(J_a) / V_a) ∂v_a/∂x ⊗ ∂v_a/∂x, ∂v_a/∂x = Σ_{e∋a} (v_e/4) ∇N.
             let mut g = Vec::new();
             for (a, (&ujj, v_ref)) in bulk.iter().zip(&self.nodal_reference).enumerate() {
@@ -493,7 +477,8 @@ impl Discretization {
                         g[local[b] as usize] += ge[b] * (v / 4.0);
                     }
                 }
-                self.pattern.add_patch_outer(values, a, &g, ujj / v_ref);
+                self.pattern
+                    .add_patch_outer(&mut values, a, &g, ujj / v_ref);
             }
         }
         if forces.iter().any(|f| !f.is_finite()) {
@@ -502,7 +487,7 @@ impl Discretization {
         Ok(Evaluation {
             forces,
             d_activation,
-            tangent: values,
+            tangent: Some(values),
             elements,
             volume: volumes.iter().sum(),
             j_nodal_range,
