@@ -4,6 +4,7 @@
     python examples/sweep_dask.py                          # local cluster, every available model
     python examples/sweep_dask.py --scheduler tcp://host:8786
     python examples/sweep_dask.py --models 1d --compare-serial --inject-failure
+    python examples/sweep_dask.py --render --out docs/sweeps  # page + figures from a run's tables
 
 The sweeps (the paper's sensitivity study, as a full factorial design):
 
@@ -11,7 +12,7 @@ The sweeps (the paper's sensitivity study, as a full factorial design):
   over sigma0 (8 values, 0.16-1.0 MPa) x kc (5, 4.0-5.88) x ke (5, 3.14-7.56)
   x d (5, 1.1-1.8) = 1,000 runs, and passive elongation over D (10, 1e-9 to
   1e-6 1/Pa, log) x sigma0 (10) = 100 runs;
-* FE (50 runs, its default mesh, h = 1e-2 s): passive over D (5) x sigma0
+* FE (50 runs, its default mesh, h = 1e-3 s): passive over D (5) x sigma0
   (5), activated over kc (5) x d (5).
 
 Each task runs one simulation (``run_task``) and returns one row of the tidy
@@ -44,6 +45,7 @@ import itertools
 import json
 import logging
 import os
+import platform
 import socket
 import sys
 import tempfile
@@ -90,7 +92,7 @@ def sweep_fe():
     return [("passive", p) for p in passive] + [("activated", p) for p in active]
 
 
-SWEEPS = {"1D": (sweep_1d, 1e-3), "FE": (sweep_fe, 1e-2)}
+SWEEPS = {"1D": (sweep_1d, 1e-3), "FE": (sweep_fe, 1e-3)}
 
 
 def make_specs(model_key, runs, h, start_id=0, inject_failure=False):
@@ -307,6 +309,21 @@ def plot_main_effects(effects, path, title):
     return path
 
 
+def waited(df):
+    """What the gap between the runs' wall and CPU times on the cluster says, if it says anything."""
+    wall, cpu = df["wall_s"].sum(), df["cpu_s"].sum()
+    return f" (wall {wall / cpu - 1:.0%} above CPU: the workers waited for a core)" if wall > 1.1 * cpu else ""
+
+
+def cpu_ratio(df, t):
+    """The cluster runs' CPU time against the serial loop's: above 1, each run cost more beside another."""
+    ratio = df["cpu_s"].sum() / t["serial_cpu_s"]
+    if ratio <= 1.05:
+        return ""
+    return (f" — the cluster's runs took {ratio:.2f}x that CPU time (two runs side by side share the caches and "
+            f"the memory bandwidth), which keeps the speed-up below the worker count")
+
+
 def summary_text(model, df, timing, files, effects):
     ok, failed = df[df["status"] == "ok"], df[df["status"] != "ok"]
     lines = [f"## {model}: {len(df)} runs", ""]
@@ -314,14 +331,13 @@ def summary_text(model, df, timing, files, effects):
     t = timing
     lines.append(f"- dask: {t['dask_s']:.1f} s wall for the {len(df)} runs on {t['workers']} worker processes "
                  f"({t['cluster']}; cluster start-up {t['startup_s']:.1f} s, not included); "
-                 f"per-run wall times sum to {df['wall_s'].sum():.1f} s, their CPU times to {df['cpu_s'].sum():.1f} s "
-                 f"(wall well above CPU: the workers waited for a core). 1-minute load average "
-                 f"{t['load_before']:.2f} before, {t['load_after_dask']:.2f} after.")
+                 f"per-run wall times sum to {df['wall_s'].sum():.1f} s, their CPU times to {df['cpu_s'].sum():.1f} s"
+                 f"{waited(df)}. 1-minute load average {t['load_before']:.2f} before, {t['load_after_dask']:.2f} after.")
     if "serial_s" in t:
         lines.append(f"- serial loop in one process: {t['serial_s']:.1f} s; speed-up {t['serial_s'] / t['dask_s']:.2f}x "
                      f"(with cluster start-up: {t['serial_s'] / (t['dask_s'] + t['startup_s']):.2f}x); CPU time of "
-                     f"the serial runs {t['serial_cpu_s']:.1f} s; load average after it {t['load_after_serial']:.2f}; "
-                     f"the two tables agree: {t['serial_matches']}.")
+                     f"the serial runs {t['serial_cpu_s']:.1f} s{cpu_ratio(df, t)}; load average after it "
+                     f"{t['load_after_serial']:.2f}; the two tables agree: {t['serial_matches']}.")
     for _, r in failed.iterrows():
         params = {k: r[k] for k in ("sigma0", "D", "kc", "ke", "d") if k in r and r[k] == r[k]}
         lines.append(f"- failed run {r['run_id']} ({r['scene']}, {params}): {r['error']}")
@@ -331,6 +347,26 @@ def summary_text(model, df, timing, files, effects):
     for (scene, name), (x, y) in effects.items():
         lines.append(f"| {scene} | {name} ({x[0]:.3g} … {x[-1]:.3g}) | {', '.join(f'{v / 1e3:.1f}' for v in y)} |")
     return lines
+
+
+def display_path(path):
+    """``path`` relative to the repository when it lies inside it (the page is committed), else as given."""
+    path = Path(path).resolve()
+    try:
+        return str(path.relative_to(REPO.resolve()))
+    except ValueError:
+        return str(path)
+
+
+def versions():
+    """Python and the packages the sweep runs on, for the page's header."""
+    import dask
+    import distributed
+    import fmpy
+    import pandas as pd
+
+    return (f"Python {platform.python_version()}, dask {dask.__version__}, distributed {distributed.__version__}, "
+            f"fmpy {fmpy.__version__}, numpy {np.__version__}, pandas {pd.__version__}")
 
 
 def compare_tables(a, b):
@@ -378,6 +414,8 @@ def main(argv=None):
     parser.add_argument("--out", default=str(REPO / "out"), help="directory of the tables (default: %(default)s)")
     parser.add_argument("--figures", default=str(REPO / "docs" / "figures"), help="figure directory")
     parser.add_argument("--doc", default=str(REPO / "docs" / "sweeps.md"), help="summary page")
+    parser.add_argument("--render", action="store_true",
+                        help="run nothing: write the page and figures again from the tables and timing.json in --out")
     args = parser.parse_args(argv)
 
     wanted = {m.strip().upper() for m in args.models.split(",")}
@@ -390,36 +428,54 @@ def main(argv=None):
         print("error: no model to sweep", file=sys.stderr)
         return 1
 
+    if args.render:
+        return render(args)
     started = time.perf_counter()
     client, cluster = start_client(args.scheduler, args.workers)
     cluster_info = {"startup_s": time.perf_counter() - started,
                     "workers": len(client.scheduler_info()["workers"]),
                     "cluster": f"scheduler {args.scheduler}" if args.scheduler else "LocalCluster on 127.0.0.1"}
     command = " ".join(["python examples/sweep_dask.py"] + list(sys.argv[1:] if argv is None else argv))
-    lines = ["# Parameter sweeps on dask.distributed", "",
-             "Generated by `examples/sweep_dask.py` (its docstring describes the sweeps and the table):", "",
-             f"```sh\n{command}\n```", "",
-             f"Machine: {os.cpu_count()} cores; {cluster_info['cluster']}, {cluster_info['workers']} workers.", ""]
-    lines += [f"**{reason}**" for reason in skipped] + ([""] if skipped else [])
-    summary = {}
+    record = {"command": command, "run_at": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+              "machine": f"{os.cpu_count()} cores, {platform.platform()}", "versions": versions(),
+              "cluster": cluster_info, "skipped": skipped, "models": {}}
     try:
         for model in models:
             df, timing = sweep_model(client, model, args, cluster_info)
             files = write_table(df, Path(args.out) / f"sweep_{model.key.lower()}.csv")
-            effects = main_effects(df, model.key)
-            fig = plot_main_effects(effects, Path(args.figures) / f"sweep_{model.key.lower()}.png",
-                                    f"{model.key}: main effects on the stress at 20 % strain")
-            lines += summary_text(model.key, df, timing, [str(f) for f in files], effects)
-            lines += ["", f"![{model.key} main effects]({os.path.relpath(fig, Path(args.doc).parent)})", ""]
-            summary[model.key] = {"runs": len(df), "failed": int((df["status"] != "ok").sum()), **timing,
-                                  "files": [str(f) for f in files]}
+            record["models"][model.key] = {"runs": len(df), "failed": int((df["status"] != "ok").sum()), **timing,
+                                           "files": [display_path(f) for f in files]}
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+    Path(args.out, "timing.json").write_text(json.dumps(record, indent=1, default=str) + "\n")
+    print(json.dumps(record["models"], indent=1, default=str))
+    return render(args)
+
+
+def render(args):
+    """The page and the figures from the tables and ``timing.json`` in ``--out`` (what a run wrote)."""
+    import pandas as pd
+
+    record = json.loads(Path(args.out, "timing.json").read_text())
+    info = record["cluster"]
+    lines = ["# Parameter sweeps on dask.distributed", "",
+             "Generated by `examples/sweep_dask.py` (its docstring describes the sweeps and the table):", "",
+             f"```sh\n{record['command']}\n```", "",
+             f"Run {record['run_at']}; machine: {record['machine']}; {info['cluster']}, {info['workers']} workers; "
+             f"{record['versions']}.", ""]
+    lines += [f"**{reason}**" for reason in record["skipped"]] + ([""] if record["skipped"] else [])
+    for key, timing in record["models"].items():
+        files = timing["files"]
+        df = pd.read_csv(REPO / files[0] if not Path(files[0]).is_absolute() else files[0])
+        effects = main_effects(df, key)
+        fig = plot_main_effects(effects, Path(args.figures) / f"sweep_{key.lower()}.png",
+                                f"{key}: main effects on the stress at 20 % strain")
+        lines += summary_text(key, df, timing, files, effects)
+        lines += ["", f"![{key} main effects]({os.path.relpath(fig, Path(args.doc).parent)})", ""]
     Path(args.doc).parent.mkdir(parents=True, exist_ok=True)
     Path(args.doc).write_text("\n".join(lines) + "\n")
-    print(json.dumps(summary, indent=1, default=str))
     print(f"wrote {args.doc}")
     return 0
 

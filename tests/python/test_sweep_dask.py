@@ -87,6 +87,11 @@ def test_script_writes_table_figure_and_summary(fmu_path, tmp_path):
     assert (tmp_path / "sweep_1d.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = (tmp_path / "sweeps.md").read_text()
     assert "failed run 6" in text and "dask:" in text
+    # --render runs nothing and writes the same page from the tables and timing.json.
+    (tmp_path / "sweeps.md").unlink()
+    assert sd.main(["--render", "--out", str(tmp_path), "--figures", str(tmp_path),
+                    "--doc", str(tmp_path / "sweeps.md")]) == 0
+    assert (tmp_path / "sweeps.md").read_text() == text
 
 
 def test_fe_runs_when_its_fmu_exists(client):
