@@ -978,7 +978,8 @@ impl Muscle {
     /// Advance over a step of length `h` to muscle length `length`, the
     /// activation level following `activation(τ)` for τ in [0, h] (exact
     /// dynamics). Tries 1, 2, 4, … [`MAX_SUBSTEPS`] substeps (length linear
-    /// in τ); `Err` with the last failure when none converges (self unchanged).
+    /// in τ, [`Self::advance_in`]); `Err` with the last failure when none
+    /// converges (self unchanged).
     pub fn advance(
         &self,
         p: &Params,
@@ -986,118 +987,152 @@ impl Muscle {
         h: f64,
         activation: &dyn Fn(f64) -> f64,
     ) -> Result<Advance, String> {
-        let disc = &self.disc;
-        let budget = Budget::for_step(disc);
+        self.advance_from(p, length, h, activation, 1)
+    }
+
+    /// [`Self::advance`] trying `first`, 2 `first`, … [`MAX_SUBSTEPS`]
+    /// substeps (`first` a power of two).
+    pub fn advance_from(
+        &self,
+        p: &Params,
+        length: f64,
+        h: f64,
+        activation: &dyn Fn(f64) -> f64,
+        first: usize,
+    ) -> Result<Advance, String> {
         let mut last_error = String::new();
-        let mut n = 1;
+        let mut n = first.max(1);
         while n <= MAX_SUBSTEPS {
-            let hs = h / n as f64;
-            let mut x = self.x.clone();
-            let mut hist = self.history.clone();
-            let mut cache = self.tangent.clone();
-            let mut trend = self.trend.clone();
-            let mut l_prev = self.length;
-            let mut iterations = 0;
-            let mut factorizations = 0;
-            let mut residuals = 0;
-            let mut done = None;
-            for i in 1..=n {
-                let tau = h * i as f64 / n as f64;
-                let l = self.length + (length - self.length) * i as f64 / n as f64;
-                let rate = FibreRate::Step { h: hs };
-                let a_start = activation(h * (i - 1) as f64 / n as f64);
-                let a_end = activation(tau);
-                let input = StepInput {
-                    x: &x,
-                    length_start: l_prev,
-                    length: l,
-                    activation_start: a_start,
-                    activation: a_end,
-                    start: &hist,
-                    rate,
-                    trend: Some(&trend),
-                    tolerance: self.tolerance,
-                    budget: &budget,
-                };
-                // Continuation (a path in the inputs, same physics) on the
-                // whole step and its halves; finer substeps in time without
-                // it, so that a hopeless step ends in bounded work.
-                let solved = if n <= CONTINUED_SUBSTEPS {
-                    disc.solve_step_continued(p, &input, cache.take())
-                } else {
-                    disc.solve_step(p, &input, cache.take())
-                };
-                match solved {
-                    Ok(Solved {
-                        solution: s,
-                        cache: c,
-                    }) => {
-                        iterations += s.iterations;
-                        factorizations += s.factorizations;
-                        residuals += s.residuals;
-                        let new_hist: Vec<FibreHistory> =
-                            s.evaluation.elements.iter().map(|e| e.history).collect();
-                        if let Some((e, err)) =
-                            s.evaluation
-                                .elements
-                                .iter()
-                                .enumerate()
-                                .find_map(|(e, el)| {
-                                    el.history
-                                        .check_physical(p.k, el.lambda_f)
-                                        .err()
-                                        .map(|m| (e, m))
-                                })
-                        {
-                            last_error = format!("element {e}: {err}");
-                            done = None;
-                            break;
-                        }
-                        trend = trend.push(Increment {
-                            dx: s.x.iter().zip(&x).map(|(a, b)| a - b).collect(),
-                            dl: l - l_prev,
-                            da: a_end - a_start,
-                            h: hs,
-                        });
-                        x = s.x.clone();
-                        l_prev = l;
-                        cache = Some(c);
-                        let start = std::mem::replace(&mut hist, new_hist);
-                        done = Some((s, start, rate, a_end));
-                    }
-                    Err(e) => {
-                        last_error = e;
-                        done = None;
-                        break;
-                    }
-                }
-            }
-            if let Some((solution, start, rate, activation)) = done {
-                return Ok(Advance {
-                    muscle: Muscle {
-                        disc: disc.clone(),
-                        x,
-                        history: hist,
-                        length,
-                        tangent: cache,
-                        trend,
-                        tolerance: self.tolerance,
-                    },
-                    solution,
-                    start,
-                    rate,
-                    activation,
-                    iterations,
-                    factorizations,
-                    residuals,
-                    substeps: n,
-                });
+            match self.advance_in(p, length, h, activation, n) {
+                Ok(done) => return Ok(done),
+                Err(e) => last_error = e,
             }
             n *= 2;
         }
         Err(format!(
             "the step to length {length} m did not converge, even in {MAX_SUBSTEPS} substeps: {last_error}"
         ))
+    }
+
+    /// The step of [`Self::advance`] in exactly `n` equal substeps (length
+    /// linear in τ, the level `activation(τ)` at each substep's ends);
+    /// `Err` with the failure of the first substep that does not converge.
+    /// With `n` fixed this is a smooth map of the step's inputs, which
+    /// the directional derivatives of a substepped step differentiate.
+    pub fn advance_in(
+        &self,
+        p: &Params,
+        length: f64,
+        h: f64,
+        activation: &dyn Fn(f64) -> f64,
+        n: usize,
+    ) -> Result<Advance, String> {
+        let disc = &self.disc;
+        let budget = Budget::for_step(disc);
+        let mut last_error = String::new();
+        let hs = h / n as f64;
+        let mut x = self.x.clone();
+        let mut hist = self.history.clone();
+        let mut cache = self.tangent.clone();
+        let mut trend = self.trend.clone();
+        let mut l_prev = self.length;
+        let mut iterations = 0;
+        let mut factorizations = 0;
+        let mut residuals = 0;
+        let mut done = None;
+        for i in 1..=n {
+            let tau = h * i as f64 / n as f64;
+            let l = self.length + (length - self.length) * i as f64 / n as f64;
+            let rate = FibreRate::Step { h: hs };
+            let a_start = activation(h * (i - 1) as f64 / n as f64);
+            let a_end = activation(tau);
+            let input = StepInput {
+                x: &x,
+                length_start: l_prev,
+                length: l,
+                activation_start: a_start,
+                activation: a_end,
+                start: &hist,
+                rate,
+                trend: Some(&trend),
+                tolerance: self.tolerance,
+                budget: &budget,
+            };
+            // Continuation (a path in the inputs, same physics) on the
+            // whole step and its halves; finer substeps in time without
+            // it, so that a hopeless step ends in bounded work.
+            let solved = if n <= CONTINUED_SUBSTEPS {
+                disc.solve_step_continued(p, &input, cache.take())
+            } else {
+                disc.solve_step(p, &input, cache.take())
+            };
+            match solved {
+                Ok(Solved {
+                    solution: s,
+                    cache: c,
+                }) => {
+                    iterations += s.iterations;
+                    factorizations += s.factorizations;
+                    residuals += s.residuals;
+                    let new_hist: Vec<FibreHistory> =
+                        s.evaluation.elements.iter().map(|e| e.history).collect();
+                    if let Some((e, err)) =
+                        s.evaluation
+                            .elements
+                            .iter()
+                            .enumerate()
+                            .find_map(|(e, el)| {
+                                el.history
+                                    .check_physical(p.k, el.lambda_f)
+                                    .err()
+                                    .map(|m| (e, m))
+                            })
+                    {
+                        last_error = format!("element {e}: {err}");
+                        done = None;
+                        break;
+                    }
+                    trend = trend.push(Increment {
+                        dx: s.x.iter().zip(&x).map(|(a, b)| a - b).collect(),
+                        dl: l - l_prev,
+                        da: a_end - a_start,
+                        h: hs,
+                    });
+                    x = s.x.clone();
+                    l_prev = l;
+                    cache = Some(c);
+                    let start = std::mem::replace(&mut hist, new_hist);
+                    done = Some((s, start, rate, a_end));
+                }
+                Err(e) => {
+                    last_error = e;
+                    done = None;
+                    break;
+                }
+            }
+        }
+        if let Some((solution, start, rate, activation)) = done {
+            return Ok(Advance {
+                muscle: Muscle {
+                    disc: disc.clone(),
+                    x,
+                    history: hist,
+                    length,
+                    tangent: cache,
+                    trend,
+                    tolerance: self.tolerance,
+                },
+                solution,
+                start,
+                rate,
+                activation,
+                iterations,
+                factorizations,
+                residuals,
+                substeps: n,
+            });
+        }
+        Err(last_error)
     }
 }
 
