@@ -31,7 +31,7 @@
 use std::sync::{Arc, OnceLock};
 
 use crate::fe::mesh::{FibreLayout, Resolution};
-use crate::fe::muscle::{Discretization, Ends, Muscle, Solution};
+use crate::fe::muscle::{Discretization, Ends, Muscle, Solution, MAX_SUBSTEPS};
 use crate::fe::newton::{Anchor, Increment, TangentCache, Trend, TREND_LENGTH};
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
@@ -245,6 +245,92 @@ impl LastStep {
     }
 }
 
+/// The activation level over one step of length `h` (MODEL_NOTES
+/// "Activation"): from level `a0` under the command `u` with rate `u_dot`,
+/// by the exact dynamics (paper eq 10), or without them
+/// (`activation_dynamics = false`) the command itself, `u + h u_dot`
+/// clamped to [0, 1], reached by a linear ramp (for substeps).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct StepLevel {
+    dynamics: bool,
+    s: f64,
+    a0: f64,
+    u: f64,
+    u_dot: f64,
+    h: f64,
+    /// The level at the end of the step and ∂(it)/∂u.
+    end: f64,
+    d_end_du: f64,
+}
+
+impl StepLevel {
+    /// `decay` = e^(−S h) ([`Decay`]).
+    fn new(dynamics: bool, s: f64, a0: f64, u: f64, u_dot: f64, h: f64, decay: f64) -> StepLevel {
+        let (end, d_end_du) = if dynamics {
+            activation_step(a0, u, u_dot, s, h, decay)
+        } else {
+            let a = u + h * u_dot;
+            if (0.0..=1.0).contains(&a) {
+                (a, 1.0)
+            } else {
+                (a.clamp(0.0, 1.0), 0.0)
+            }
+        };
+        StepLevel {
+            dynamics,
+            s,
+            a0,
+            u,
+            u_dot,
+            h,
+            end,
+            d_end_du,
+        }
+    }
+
+    /// The level at τ ∈ [0, h] into the step.
+    fn at(&self, tau: f64) -> f64 {
+        if tau >= self.h {
+            self.end
+        } else if self.dynamics {
+            activation_step(
+                self.a0,
+                self.u,
+                self.u_dot,
+                self.s,
+                tau,
+                (-self.s * tau).exp(),
+            )
+            .0
+        } else {
+            self.a0 + (self.end - self.a0) * tau / self.h
+        }
+    }
+}
+
+/// A step that needed substeps (its Newton iteration did not converge in
+/// one): the muscle it started from and what it was asked. Its directional
+/// derivatives are those of the step map — the same number of substeps
+/// from `before` to the inputs — by central differences
+/// ([`HillFEModel::force_derivatives`]): the converged tangent of the last
+/// substep alone holds that substep's start history fixed, which depends
+/// on the step's inputs as well.
+#[derive(Clone, Debug)]
+struct Substepped {
+    before: Muscle,
+    level: StepLevel,
+    end_length: f64,
+    substeps: usize,
+}
+
+/// Relative step of the central differences of a substepped step's map:
+/// of L0 for the length, absolute for the command (one-sided at the ends
+/// of [0, 1]). With the solver's tolerance of 1e-10 of the force scale
+/// ([`crate::fe::muscle::RESIDUAL_TOLERANCE`]) the rounding part of the
+/// difference is ~1e-10/1e-5 = 1e-5 of the derivative, its truncation part
+/// O(1e-10) relative.
+const STEP_MAP_DIFFERENCE: f64 = 1e-5;
+
 /// The full `HillMuscleFE` (the scene `fmu_build/scenes/hill_muscle_fe.toml`).
 pub type HillFE = HillFEModel<crate::scene::shipped::HillMuscleFE>;
 
@@ -273,10 +359,16 @@ pub struct HillFEModel<S: Scene> {
     activation_level: f64,
     muscle: Option<Muscle>,
     last: Option<LastStep>,
+    /// The last step, when it took substeps ([`Substepped`]).
+    substepped: Option<Substepped>,
+    /// The substeps a step tries first (1; the tests force more to check
+    /// the derivatives of substepped steps). Not part of the state.
+    min_substeps: usize,
     decay: Option<Decay>,
     outputs: [f64; N_OUT],
     newton_iterations: i32,
-    /// (dF/dL, dF/da) at the committed state, computed on first request.
+    /// (dF/dL, dF/du) at the committed state (u the activation command),
+    /// computed on first request.
     derivatives: OnceLock<Result<(f64, f64), String>>,
 }
 
@@ -375,14 +467,22 @@ impl<S: Scene> HillFEModel<S> {
         self.activation_level = last.activation;
         self.muscle = Some(muscle);
         self.last = Some(last);
+        self.substepped = None;
         self.newton_iterations = i32::try_from(iterations).unwrap_or(i32::MAX);
         self.derivatives = OnceLock::new();
     }
 
-    /// (dF/dL, dF/da) at the committed state from its converged tangent.
+    /// (dF/dL, dF/du) of the last step's map at the committed state (u the
+    /// activation command): from the converged tangent (one factorisation
+    /// and two solves, [`Discretization::force_derivatives`]; dF/du =
+    /// dF/da · ∂a/∂u), or for a step that took substeps by central
+    /// differences of its map ([`Substepped`]).
     fn force_derivatives(&self) -> Result<(f64, f64), ModelError> {
         self.derivatives
             .get_or_init(|| {
+                if let Some(step) = &self.substepped {
+                    return self.step_map_derivatives(step);
+                }
                 let (m, last) = match (&self.muscle, &self.last) {
                     (Some(m), Some(l)) => (m, l),
                     _ => return Err("the model is not initialized".into()),
@@ -395,10 +495,39 @@ impl<S: Scene> HillFEModel<S> {
                     last.rate(),
                     true,
                 )?;
-                m.disc.force_derivatives(&ev)
+                let (dl, da) = m.disc.force_derivatives(&ev)?;
+                Ok((dl, da * last.da_du))
             })
             .clone()
             .map_err(ModelError)
+    }
+
+    /// (dF/dL, dF/du) of a substepped step's map by central differences
+    /// ([`STEP_MAP_DIFFERENCE`]), each difference the step taken again
+    /// from the muscle before it in the same substeps.
+    fn step_map_derivatives(&self, step: &Substepped) -> Result<(f64, f64), String> {
+        let force = |length: f64, command: f64| -> Result<f64, String> {
+            let l = step.level;
+            let decay = Decay::new(l.s, l.h).value;
+            let level = StepLevel::new(l.dynamics, l.s, l.a0, command, l.u_dot, l.h, decay);
+            let adv = step.before.advance_in(
+                &self.params,
+                length,
+                l.h,
+                &|tau| level.at(tau),
+                step.substeps,
+            )?;
+            Ok(adv.muscle.disc.reaction(&adv.solution.evaluation.forces))
+        };
+        let (length, u) = (step.end_length, step.level.u);
+        let dl = STEP_MAP_DIFFERENCE * self.l0;
+        let d_length = (force(length + dl, u)? - force(length - dl, u)?) / (2.0 * dl);
+        let (lo, hi) = (
+            (u - STEP_MAP_DIFFERENCE).max(0.0),
+            (u + STEP_MAP_DIFFERENCE).min(1.0),
+        );
+        let d_command = (force(length, hi)? - force(length, lo)?) / (hi - lo);
+        Ok((d_length, d_command))
     }
 }
 
@@ -435,6 +564,8 @@ impl<S: Scene> Model for HillFEModel<S> {
             activation_level: 0.0,
             muscle: None,
             last: None,
+            substepped: None,
+            min_substeps: 1,
             decay: None,
             outputs: [0.0; N_OUT],
             newton_iterations: 0,
@@ -615,40 +746,31 @@ impl<S: Scene> Model for HillFEModel<S> {
         }
         self.check_stretch(end_length).map_err(StepError::Discard)?;
         let decay = Decay::for_step(self.decay, self.params.s, h);
-        let (a0, u, u_dot, s) = (
+        let level = StepLevel::new(
+            self.activation_dynamics,
+            self.params.s,
             self.activation_level,
             self.command,
             self.command_rate,
-            self.params.s,
+            h,
+            decay.value,
         );
-        let (a_end, da_du) = if self.activation_dynamics {
-            activation_step(a0, u, u_dot, s, h, decay.value)
-        } else {
-            let a = u + h * u_dot;
-            if (0.0..=1.0).contains(&a) {
-                (a, 1.0)
-            } else {
-                (a.clamp(0.0, 1.0), 0.0)
-            }
-        };
-        let dynamics = self.activation_dynamics;
-        // The level within the step (for substeps): exact dynamics, or a
-        // linear ramp to the command without them.
-        let level = move |tau: f64| -> f64 {
-            if tau >= h {
-                a_end
-            } else if dynamics {
-                activation_step(a0, u, u_dot, s, tau, (-s * tau).exp()).0
-            } else {
-                a0 + (a_end - a0) * tau / h
-            }
-        };
+        let (a_end, da_du) = (level.end, level.d_end_du);
         let adv = muscle
-            .advance(&self.params, end_length, h, &level)
+            .advance_from(
+                &self.params,
+                end_length,
+                h,
+                &|tau| level.at(tau),
+                self.min_substeps,
+            )
             .map_err(|e| StepError::Discard(format!("length = {end_length} m: {e}")))?;
-        if adv.substeps > 1 {
-            // Informational: the layer logs nothing for a successful step.
-        }
+        let substepped = (adv.substeps > 1).then(|| Substepped {
+            before: muscle.clone(),
+            level,
+            end_length,
+            substeps: adv.substeps,
+        });
         let last = LastStep {
             start: adv.start,
             h: match adv.rate {
@@ -665,6 +787,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             )));
         }
         self.commit(adv.muscle, &adv.solution, last, adv.iterations);
+        self.substepped = substepped;
         self.decay = Some(decay);
         self.command_rate = 0.0;
         self.length_rate = 0.0;
@@ -672,8 +795,8 @@ impl<S: Scene> Model for HillFEModel<S> {
     }
 
     /// Partial derivatives of `force`, `stress` and `activation_level` with
-    /// respect to both inputs, from the converged tangent of the last step
-    /// (one factorisation and two solves, [`Discretization::force_derivatives`]).
+    /// respect to both inputs: those of the last step's map
+    /// ([`Self::force_derivatives`]).
     fn partial_derivative(&self, unknown: Var, known: Var) -> Result<f64, ModelError> {
         let by_length = match known {
             Var::Length => true,
@@ -688,8 +811,8 @@ impl<S: Scene> Model for HillFEModel<S> {
         match unknown {
             Var::Out(Output::ActivationLevel) => Ok(if by_length { 0.0 } else { da_du }),
             Var::Out(o @ (Output::Force | Output::Stress)) => {
-                let (dl, da) = self.force_derivatives()?;
-                let d = if by_length { dl } else { da * da_du };
+                let (dl, du) = self.force_derivatives()?;
+                let d = if by_length { dl } else { du };
                 Ok(if o == Output::Force { d } else { d / self.area })
             }
             _ => Err(ModelError(
@@ -771,23 +894,51 @@ impl<S: Scene> Model for HillFEModel<S> {
                 // The solver's reused tangent is part of the state: its
                 // anchor, from which a restored instance forms it again
                 // (bit for bit), and the predictor's trend.
-                match &m.tangent {
-                    Some(c) => {
-                        let a = &c.anchor;
+                let solver = |w: &mut ByteWriter<'_>, m: &Muscle| {
+                    match &m.tangent {
+                        Some(c) => {
+                            let a = &c.anchor;
+                            w.bool(true)
+                                .f64s(&a.x)
+                                .f64(a.activation)
+                                .f64s(&hist(&a.start))
+                                .f64s(rate_step(a.rate).as_slice())
+                                .f64s(a.pressure.as_deref().unwrap_or(&[]));
+                        }
+                        None => {
+                            w.bool(false);
+                        }
+                    }
+                    w.u64(m.trend.increments.len() as u64);
+                    for inc in &m.trend.increments {
+                        w.f64s(&inc.dx).f64(inc.dl).f64(inc.da).f64(inc.h);
+                    }
+                };
+                solver(&mut w, m);
+                // A substepped last step: the muscle before it and its
+                // inputs (its directional derivatives take it again).
+                match &self.substepped {
+                    Some(st) => {
+                        let (b, l) = (&st.before, &st.level);
                         w.bool(true)
-                            .f64s(&a.x)
-                            .f64(a.activation)
-                            .f64s(&hist(&a.start))
-                            .f64s(rate_step(a.rate).as_slice())
-                            .f64s(a.pressure.as_deref().unwrap_or(&[]));
+                            .f64s(&b.x)
+                            .f64s(&hist(&b.history))
+                            .f64(b.length);
+                        solver(&mut w, b);
+                        w.bool(l.dynamics)
+                            .f64(l.s)
+                            .f64(l.a0)
+                            .f64(l.u)
+                            .f64(l.u_dot)
+                            .f64(l.h)
+                            .f64(l.end)
+                            .f64(l.d_end_du)
+                            .f64(st.end_length)
+                            .u64(st.substeps as u64);
                     }
                     None => {
                         w.bool(false);
                     }
-                }
-                w.u64(m.trend.increments.len() as u64);
-                for inc in &m.trend.increments {
-                    w.f64s(&inc.dx).f64(inc.dl).f64(inc.da).f64(inc.h);
                 }
             }
             _ => {
@@ -817,6 +968,8 @@ impl<S: Scene> Model for HillFEModel<S> {
             activation_level: 0.0,
             muscle: None,
             last: None,
+            substepped: None,
+            min_substeps: 1,
             decay: None,
             outputs: [0.0; N_OUT],
             newton_iterations: 0,
@@ -936,46 +1089,93 @@ impl<S: Scene> Model for HillFEModel<S> {
                 }
                 Ok(v)
             };
-            let tangent = if r.bool()? {
-                let ax = positions(r.f64s()?)?;
-                let activation = r.f64()?;
-                let start = pairs(r.f64s()?)?;
-                let rate = match r.f64s()?.as_slice() {
-                    [] => FibreRate::Isometric,
-                    &[h] if h.is_finite() && h > 0.0 => FibreRate::Step { h },
-                    other => return Err(bad(format!("bad anchor step {other:?}"))),
+            let solver = |r: &mut ByteReader<'_, '_>| -> Result<(Option<Arc<TangentCache>>, Trend), ModelError> {
+                let tangent = if r.bool()? {
+                    let ax = positions(r.f64s()?)?;
+                    let activation = r.f64()?;
+                    let start = pairs(r.f64s()?)?;
+                    let rate = match r.f64s()?.as_slice() {
+                        [] => FibreRate::Isometric,
+                        &[h] if h.is_finite() && h > 0.0 => FibreRate::Step { h },
+                        other => return Err(bad(format!("bad anchor step {other:?}"))),
+                    };
+                    if !activation.is_finite() {
+                        return Err(bad("a non-finite anchor activation".into()));
+                    }
+                    let pressure = match r.f64s()? {
+                        v if v.is_empty() => None,
+                        v if v.len() == disc.n_nodes() && v.iter().all(|p| p.is_finite()) => Some(v),
+                        v => return Err(bad(format!("{} anchor pressure values", v.len()))),
+                    };
+                    Some(Arc::new(TangentCache::new(Anchor {
+                        x: ax,
+                        activation,
+                        start,
+                        rate,
+                        pressure,
+                    })))
+                } else {
+                    None
                 };
-                if !activation.is_finite() {
-                    return Err(bad("a non-finite anchor activation".into()));
+                let n_increments = r.u64()?;
+                if n_increments > TREND_LENGTH as u64 {
+                    return Err(bad(format!("{n_increments} predictor increments")));
                 }
-                let pressure = match r.f64s()? {
-                    v if v.is_empty() => None,
-                    v if v.len() == disc.n_nodes() && v.iter().all(|p| p.is_finite()) => Some(v),
-                    v => return Err(bad(format!("{} anchor pressure values", v.len()))),
-                };
-                Some(Arc::new(TangentCache::new(Anchor {
-                    x: ax,
-                    activation,
-                    start,
-                    rate,
-                    pressure,
-                })))
+                let mut trend = Trend::default();
+                for _ in 0..n_increments {
+                    let dx = positions(r.f64s()?)?;
+                    let (dl, da, h) = (r.f64()?, r.f64()?, r.f64()?);
+                    if !(dl.is_finite() && da.is_finite() && h.is_finite() && h > 0.0) {
+                        return Err(bad("a bad predictor increment".into()));
+                    }
+                    trend.increments.push(Increment { dx, dl, da, h });
+                }
+                Ok((tangent, trend))
+            };
+            let (tangent, trend) = solver(&mut r)?;
+            let substepped = if r.bool()? {
+                let x = positions(r.f64s()?)?;
+                let history = pairs(r.f64s()?)?;
+                let length = r.f64()?;
+                let (tangent, trend) = solver(&mut r)?;
+                let dynamics = r.bool()?;
+                let v: Vec<f64> = (0..8).map(|_| r.f64()).collect::<Result<_, _>>()?;
+                let substeps = r.u64()?;
+                let valid = length.is_finite()
+                    && length > 0.0
+                    && v.iter().all(|x| x.is_finite())
+                    && v[4] > 0.0
+                    && v[7] > 0.0
+                    && (2..=MAX_SUBSTEPS as u64).contains(&substeps);
+                if !valid {
+                    return Err(bad("a bad substepped step".into()));
+                }
+                Some(Substepped {
+                    before: Muscle {
+                        disc: disc.clone(),
+                        x,
+                        history,
+                        length,
+                        tangent,
+                        trend,
+                        tolerance: crate::fe::muscle::RESIDUAL_TOLERANCE,
+                    },
+                    level: StepLevel {
+                        dynamics,
+                        s: v[0],
+                        a0: v[1],
+                        u: v[2],
+                        u_dot: v[3],
+                        h: v[4],
+                        end: v[5],
+                        d_end_du: v[6],
+                    },
+                    end_length: v[7],
+                    substeps: substeps as usize,
+                })
             } else {
                 None
             };
-            let n_increments = r.u64()?;
-            if n_increments > TREND_LENGTH as u64 {
-                return Err(bad(format!("{n_increments} predictor increments")));
-            }
-            let mut trend = Trend::default();
-            for _ in 0..n_increments {
-                let dx = positions(r.f64s()?)?;
-                let (dl, da, h) = (r.f64()?, r.f64()?, r.f64()?);
-                if !(dl.is_finite() && da.is_finite() && h.is_finite() && h > 0.0) {
-                    return Err(bad("a bad predictor increment".into()));
-                }
-                trend.increments.push(Increment { dx, dl, da, h });
-            }
             m.muscle = Some(Muscle {
                 disc,
                 x,
@@ -991,6 +1191,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                 activation,
                 da_du,
             });
+            m.substepped = substepped;
         }
         Ok(m)
     }
@@ -1189,3 +1390,97 @@ instance unchanged.</p>
 <p><code>force</code> is the axial reaction on the moved face; <code>stress</code> = force / area. Directional derivatives
 of force, stress and activation_level with respect to both inputs come from the converged tangent.</p>
 "#;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 6 × 1 muscle at 1.1 L0, activated (level 0.3), stepped once.
+    fn activated_muscle() -> HillFE {
+        let mut m = HillFE::new();
+        m.set_integer(Var::NAxial, 6).unwrap();
+        m.set_integer(Var::NRadial, 1).unwrap();
+        m.set_real(Var::InitialActivation, 0.3).unwrap();
+        m.set_real(Var::Activation, 0.3).unwrap();
+        m.set_real(Var::Length, 1.1 * DEFAULT_L0).unwrap();
+        m.initialize().unwrap();
+        m
+    }
+
+    fn force(m: &HillFE) -> f64 {
+        m.get_real(Var::Out(Output::Force))
+    }
+
+    /// The step from `m` to length `l` under command `u`, in (at least)
+    /// `substeps` substeps.
+    fn stepped(m: &HillFE, l: f64, u: f64, substeps: usize) -> HillFE {
+        let mut m = m.clone();
+        m.min_substeps = substeps;
+        m.set_real(Var::Length, l).unwrap();
+        m.set_real(Var::Activation, u).unwrap();
+        m.do_step(0.0, 5e-3).unwrap();
+        m
+    }
+
+    /// A step taken in 4 substeps: its directional derivatives are those of
+    /// the whole step's map (central differences of the FMU's own steps,
+    /// with a step 10x the model's), not those of the last substep's
+    /// tangent, which holds that substep's start history fixed and is
+    /// distinctly off here; and a restored copy of the state gives the
+    /// same derivatives bit for bit.
+    #[test]
+    fn a_substepped_step_has_the_derivatives_of_its_step_map() {
+        let before = activated_muscle();
+        let (l, u) = (1.12 * DEFAULT_L0, 0.6);
+        let m = stepped(&before, l, u, 4);
+        assert_eq!(m.substepped.as_ref().map(|s| s.substeps), Some(4));
+        let d_l = m
+            .partial_derivative(Var::Out(Output::Force), Var::Length)
+            .unwrap();
+        let d_u = m
+            .partial_derivative(Var::Out(Output::Force), Var::Activation)
+            .unwrap();
+        let (el, eu) = (1e-4 * DEFAULT_L0, 1e-4);
+        let fd_l = (force(&stepped(&before, l + el, u, 4))
+            - force(&stepped(&before, l - el, u, 4)))
+            / (2.0 * el);
+        let fd_u = (force(&stepped(&before, l, u + eu, 4))
+            - force(&stepped(&before, l, u - eu, 4)))
+            / (2.0 * eu);
+        assert!(((d_l - fd_l) / fd_l).abs() < 1e-5, "dF/dL {d_l} vs {fd_l}");
+        assert!(((d_u - fd_u) / fd_u).abs() < 1e-5, "dF/du {d_u} vs {fd_u}");
+
+        // The last substep's tangent alone (what the derivatives were
+        // before): off by more than 1 % in the command.
+        let mut last_only = m.clone();
+        last_only.substepped = None;
+        last_only.derivatives = OnceLock::new();
+        let (_, d_u_last) = last_only.force_derivatives().unwrap();
+        assert!(
+            ((d_u_last - fd_u) / fd_u).abs() > 1e-2,
+            "the last substep's tangent {d_u_last} is as good as the map's {fd_u}: the test shows nothing"
+        );
+
+        let mut bytes = Vec::new();
+        m.serialize(&mut bytes);
+        let restored = HillFE::deserialize(&mut bytes.as_slice()).unwrap();
+        assert!(restored.substepped.is_some());
+        assert_eq!(
+            restored
+                .partial_derivative(Var::Out(Output::Force), Var::Length)
+                .unwrap()
+                .to_bits(),
+            d_l.to_bits()
+        );
+        assert_eq!(
+            restored
+                .partial_derivative(Var::Out(Output::Force), Var::Activation)
+                .unwrap()
+                .to_bits(),
+            d_u.to_bits()
+        );
+        // A step in one piece clears the record.
+        let next = stepped(&m, l, u, 1);
+        assert!(next.substepped.is_none());
+    }
+}
