@@ -393,7 +393,7 @@ fn a_state_without_a_muscle_is_refused() {
     let (_, model) = split_state(&bytes).unwrap();
     // HillFE::serialize: the parameters, L0, area, activation_dynamics,
     // initial_activation, n_axial, n_radial, axial_grading, fibre_layout,
-    // command, length, the rates, the level, the decay, the outputs, the
+    // adaptive_substeps, substep_tolerance, command, length, the rates, the level, the decay, the outputs, the
     // Newton iterations; then the flag.
     let mut input = model;
     let mut r = ByteReader::new(&mut input);
@@ -407,6 +407,8 @@ fn a_state_without_a_muscle_is_refused() {
         r.i32()?;
         r.f64()?;
         r.i32()?;
+        r.bool()?;
+        r.f64()?;
         r.f64()?;
         r.f64s()?;
         r.f64()?;

@@ -55,7 +55,8 @@ use crate::fe::mesh::{
 pub use crate::fe::newton::{
     Budget, Increment, Solution, Solved, StepInput, TangentCache, Trend, RESIDUAL_TOLERANCE,
 };
-use crate::law::hill_fibre::FibreStress;
+use crate::law::force_length::force_length;
+use crate::law::hill_fibre::{backward_euler_error, FibreStress};
 use crate::law::stress::IsochoricStress;
 use crate::law::volumetric::volumetric_derivatives;
 use crate::law::{FibreHistory, FibreRate, LawPoint, Params};
@@ -785,7 +786,14 @@ pub struct Advance {
     pub factorizations: usize,
     /// Residual evaluations, summed over the substeps.
     pub residuals: usize,
+    /// Substeps taken, summed over the pieces.
     pub substeps: usize,
+    /// The step's pieces: the time each ends at (the last at h) and the
+    /// equal substeps it took ([`Muscle::advance_pieces`] takes the same
+    /// again); one piece unless the time error was controlled.
+    pub pieces: Vec<(f64, usize)>,
+    /// Pieces tried and rejected by the error estimate.
+    pub rejected: usize,
 }
 
 impl Muscle {
@@ -1130,9 +1138,192 @@ impl Muscle {
                 factorizations,
                 residuals,
                 substeps: n,
+                pieces: vec![(h, n)],
+                rejected: 0,
             });
         }
         Err(last_error)
+    }
+}
+
+/// Most pieces (accepted and rejected) an error-controlled step tries
+/// before it takes the rest of the step in one piece
+/// ([`Muscle::advance_controlled`]).
+pub const MAX_PIECE_TRIES: usize = 256;
+
+/// The shortest piece of an error-controlled step, as a fraction of the
+/// step: such a piece is accepted whatever its estimate (an event faster
+/// than that — an activation jump with S h ≫ 1 — is not resolved further).
+pub const FINEST_PIECE: f64 = 1.0 / 4096.0;
+
+impl Muscle {
+    /// The CE rates λ̇m per element of a committed (sub)step that started
+    /// from `start` and took `h` (0 for an isometric one): the rates the
+    /// next piece's error estimate starts from.
+    pub fn ce_rates(&self, start: &[FibreHistory], h: Option<f64>) -> Vec<f64> {
+        match h {
+            Some(h) => self
+                .history
+                .iter()
+                .zip(start)
+                .map(|(e, s)| (e.lambda_m - s.lambda_m) / h)
+                .collect(),
+            None => vec![0.0; self.history.len()],
+        }
+    }
+
+    /// Estimated local error of the CE–SEE update over the piece `piece`
+    /// taken from this muscle, as SEE stress [Pa]: the largest over the
+    /// elements of [`crate::law::hill_fibre::backward_euler_error`], with
+    /// the rates `rates` at the piece's start and its backward-Euler rates
+    /// at the end (returned, for the next piece); `levels` the activation
+    /// level at the piece's ends. No error where the CE can carry nothing
+    /// at the end (σ0 a f_λ = 0: σ_s = 0 exactly), nor where the SEE is
+    /// slack at both ends (λs ≤ 1: the CE follows the kinematics, no ODE).
+    pub fn piece_error(
+        &self,
+        p: &Params,
+        piece: &Advance,
+        rates: &[f64],
+        levels: (f64, f64),
+    ) -> (f64, Vec<f64>) {
+        let h = match piece.rate {
+            FibreRate::Step { h } => h,
+            FibreRate::Isometric => return (0.0, vec![0.0; rates.len()]),
+        };
+        let cap = p.fv_max() * p.sigma0 * levels.0.max(levels.1);
+        let end_rates = piece.muscle.ce_rates(&piece.start, Some(h));
+        let mut worst = 0.0f64;
+        for (((e, before), &r0), &r1) in piece
+            .solution
+            .evaluation
+            .elements
+            .iter()
+            .zip(&self.history)
+            .zip(rates)
+            .zip(&end_rates)
+        {
+            let drive = p.sigma0 * levels.1 * force_length(e.lambda_f, p.lambda_opt).0;
+            let slack = e.history.lambda_s <= 1.0 && before.lambda_s <= 1.0;
+            if drive == 0.0 || slack {
+                continue;
+            }
+            // NaN propagates (max ignores it): make it the worst.
+            let err = backward_euler_error(p, cap, r0, r1, h);
+            worst = if err.is_nan() {
+                f64::INFINITY
+            } else {
+                worst.max(err)
+            };
+        }
+        (worst, end_rates)
+    }
+
+    /// The step of [`Self::advance`] in pieces whose estimated local error
+    /// of the CE–SEE update ([`Self::piece_error`]) stays below `tolerance`
+    /// (SEE stress, Pa), as the 1D model's substeps do: the whole step
+    /// first; a rejected piece is tried again shorter, by the factor
+    /// 0.9 √(tolerance/error) (backward Euler's local error is second order
+    /// in its length) within [1/4, 0.9]; after an accepted piece the next is
+    /// up to 4× longer. A piece of [`FINEST_PIECE`] h is accepted whatever
+    /// its estimate, and after [`MAX_PIECE_TRIES`] tries the rest of the
+    /// step is one piece. Each piece is [`Self::advance`] over its part of
+    /// the step (length linear in time, the level `activation(τ)`), with
+    /// its own substeps when Newton needs them. `rates`: the CE rates at
+    /// the step's start ([`Self::ce_rates`] of the last step). `Err` when a
+    /// piece does not converge (self unchanged).
+    pub fn advance_controlled(
+        &self,
+        p: &Params,
+        length: f64,
+        h: f64,
+        activation: &dyn Fn(f64) -> f64,
+        tolerance: f64,
+        rates: &[f64],
+    ) -> Result<Advance, String> {
+        let at = |tau: f64| self.length + (length - self.length) * (tau / h).min(1.0);
+        let mut m = self.clone();
+        let mut rates = rates.to_vec();
+        let (mut tau, mut hs) = (0.0, h);
+        let (mut pieces, mut tries, mut rejected) = (Vec::new(), 0, 0);
+        let (mut iterations, mut factorizations, mut residuals, mut substeps) = (0, 0, 0, 0);
+        loop {
+            tries += 1;
+            let last_try = tries >= MAX_PIECE_TRIES;
+            let end = if last_try || tau + hs >= h * (1.0 - 1e-12) {
+                h
+            } else {
+                tau + hs
+            };
+            let piece_h = end - tau;
+            let start = tau;
+            let piece = m.advance(p, at(end), piece_h, &|s| activation(start + s))?;
+            iterations += piece.iterations;
+            factorizations += piece.factorizations;
+            residuals += piece.residuals;
+            let levels = (activation(start), activation(end));
+            let (err, end_rates) = m.piece_error(p, &piece, &rates, levels);
+            let finest = piece_h <= FINEST_PIECE * h * (1.0 + 1e-9);
+            if err <= tolerance || finest || last_try {
+                substeps += piece.substeps;
+                pieces.push((end, piece.substeps));
+                rates = end_rates;
+                let grow = if err > 0.0 {
+                    (0.9 * (tolerance / err).sqrt()).min(4.0)
+                } else {
+                    4.0
+                };
+                hs = (piece_h * grow).max(FINEST_PIECE * h);
+                tau = end;
+                if end == h {
+                    return Ok(Advance {
+                        iterations,
+                        factorizations,
+                        residuals,
+                        substeps,
+                        pieces,
+                        rejected,
+                        ..piece
+                    });
+                }
+                m = piece.muscle;
+            } else {
+                rejected += 1;
+                let shrink = if err.is_finite() {
+                    (0.9 * (tolerance / err).sqrt()).clamp(0.25, 0.9)
+                } else {
+                    0.25
+                };
+                hs = (piece_h * shrink).max(FINEST_PIECE * h);
+            }
+        }
+    }
+
+    /// The step in the pieces `pieces` ([`Advance::pieces`]: end times, the
+    /// last `h`, and each piece's equal substeps), without error control:
+    /// with the pieces fixed, a smooth map of the step's inputs, which the
+    /// directional derivatives of a step in more than one substep
+    /// differentiate.
+    pub fn advance_pieces(
+        &self,
+        p: &Params,
+        length: f64,
+        h: f64,
+        activation: &dyn Fn(f64) -> f64,
+        pieces: &[(f64, usize)],
+    ) -> Result<Advance, String> {
+        let at = |tau: f64| self.length + (length - self.length) * (tau / h).min(1.0);
+        let mut m = self.clone();
+        let mut tau = 0.0;
+        let mut done = None;
+        for &(end, n) in pieces {
+            let start = tau;
+            let piece = m.advance_in(p, at(end), end - start, &|s| activation(start + s), n)?;
+            m = piece.muscle.clone();
+            tau = end;
+            done = Some(piece);
+        }
+        done.ok_or_else(|| "a step of no pieces".to_string())
     }
 }
 

@@ -3,6 +3,18 @@
 use crate::fmi2::{Causality, ModelError, ScalarVariable, Unit, VarType, Variability};
 use crate::law::params::Range;
 
+/// Tolerance of both models' substep control (`substep_tolerance`'s
+/// default), relative to sigma0: the estimated local error of the CE–SEE
+/// update over one substep, as SEE stress, stays below `SUBSTEP_RTOL ·
+/// sigma0` ([`crate::law::hill_fibre::backward_euler_error`]).
+pub const SUBSTEP_RTOL: f64 = 1e-3;
+
+/// The tolerances `substep_tolerance` accepts (a fraction of sigma0).
+pub const SUBSTEP_TOLERANCE_RANGE: Range = Range {
+    min: 1e-9,
+    max: 1.0,
+};
+
 /// The units both muscle FMUs declare.
 pub fn units() -> Vec<Unit> {
     let u = |name, kg, m, s| Unit { name, kg, m, s };

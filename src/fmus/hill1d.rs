@@ -24,6 +24,7 @@
 //! length and `initial_activation`.
 
 use super::common::{check_positive, check_range, check_unit_interval, parameter, real, units};
+pub use super::common::{SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE};
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
@@ -32,8 +33,8 @@ use crate::fmi2::{
 use crate::law::activation::{activation_step, Decay};
 use crate::law::force_length::force_length;
 use crate::law::force_velocity::branch_included;
-use crate::law::hill_fibre::ce_stretch;
-use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
+use crate::law::hill_fibre::{backward_euler_error, ce_stretch};
+use crate::law::params::{AREA_RANGE, L0_RANGE};
 use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, evaluable_stretch_range, Sensitivity};
 use crate::law::{
@@ -144,17 +145,6 @@ const N_OUT: usize = OUTPUTS.len();
 const IN_ACTIVATION: usize = 0;
 const IN_LENGTH: usize = 1;
 
-/// Tolerance of the substep control, relative to sigma0: the estimated local
-/// error of the CE–SEE update over one substep, as SEE stress, stays below
-/// `SUBSTEP_RTOL · sigma0` ([`piece_error`]).
-pub const SUBSTEP_RTOL: f64 = 1e-3;
-
-/// The tolerances `substep_tolerance` accepts (a fraction of sigma0).
-pub const SUBSTEP_TOLERANCE_RANGE: Range = Range {
-    min: 1e-9,
-    max: 1.0,
-};
-
 /// Most tries (accepted and rejected substeps) per step before the rest of
 /// the step is taken in one piece.
 pub const MAX_SUBSTEPS: u32 = 10_000;
@@ -210,13 +200,9 @@ pub fn piece_error(
         }
         rate = kinematic;
     }
-    // The largest SEE stress the CE can hold over the piece, and the SEE's
-    // stiffness there: an error of λm stays in the state and turns into this
-    // much stress error once the SEE is stretched that far.
+    // The largest SEE stress the CE can hold over the piece.
     let cap = p.fv_max() * p.sigma0 * a.max(start_a);
-    let estimate =
-        see_stiffness(cap, p.alpha, p.beta) * hs / (2.0 * p.k) * (rate - start_rate).abs();
-    estimate.min(cap)
+    backward_euler_error(p, cap, start_rate, rate, hs)
 }
 
 /// How many halvings bring a piece within `factor` (< 1) of its length:

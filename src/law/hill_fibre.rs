@@ -39,6 +39,22 @@ pub fn ce_stretch(k: f64, lambda_f: f64, lambda_s: f64) -> f64 {
     (1.0 + k) * lambda_f - k * lambda_s
 }
 
+/// Estimated local error of one backward-Euler step of the CE–SEE update
+/// over a piece of length `hs`, as SEE stress [Pa] (MODEL_NOTES "Hill
+/// fibre"; the substep control of both models). The CE stretch obeys
+/// λ̇m = r(t, λm); backward Euler's local error is (hs/2)(r(end) −
+/// r(start)) + O(hs³), its difference from the trapezoidal rule. With λ̄f
+/// given, λs errs by that over k, and σ_s by σ_s' = alpha (σ_s + beta)
+/// times that, taken at `cap`, the largest SEE stress the CE can hold over
+/// the piece (f_v,max σ0 a): an error of λm stays in the state and turns
+/// into this much stress once the SEE is stretched that far. σ_s stays
+/// within [0, cap], so no estimate exceeds `cap`.
+pub fn backward_euler_error(p: &Params, cap: f64, rate_start: f64, rate_end: f64, hs: f64) -> f64 {
+    let estimate =
+        see_stiffness(cap, p.alpha, p.beta) * hs / (2.0 * p.k) * (rate_end - rate_start).abs();
+    estimate.min(cap)
+}
+
 impl FibreHistory {
     /// Whether the series kinematics (MODEL_NOTES "Hill fibre") describe a real
     /// fibre: both element stretches finite and > 0. The law itself stays

