@@ -792,8 +792,6 @@ pub struct Advance {
     /// equal substeps it took ([`Muscle::advance_pieces`] takes the same
     /// again); one piece unless the time error was controlled.
     pub pieces: Vec<(f64, usize)>,
-    /// Pieces tried and rejected by the error estimate.
-    pub rejected: usize,
 }
 
 impl Muscle {
@@ -995,21 +993,8 @@ impl Muscle {
         h: f64,
         activation: &dyn Fn(f64) -> f64,
     ) -> Result<Advance, String> {
-        self.advance_from(p, length, h, activation, 1)
-    }
-
-    /// [`Self::advance`] trying `first`, 2 `first`, … [`MAX_SUBSTEPS`]
-    /// substeps (`first` a power of two).
-    pub fn advance_from(
-        &self,
-        p: &Params,
-        length: f64,
-        h: f64,
-        activation: &dyn Fn(f64) -> f64,
-        first: usize,
-    ) -> Result<Advance, String> {
         let mut last_error = String::new();
-        let mut n = first.max(1);
+        let mut n = 1;
         while n <= MAX_SUBSTEPS {
             match self.advance_in(p, length, h, activation, n) {
                 Ok(done) => return Ok(done),
@@ -1139,7 +1124,6 @@ impl Muscle {
                 residuals,
                 substeps: n,
                 pieces: vec![(h, n)],
-                rejected: 0,
             });
         }
         Err(last_error)
@@ -1242,10 +1226,12 @@ impl Muscle {
         rates: &[f64],
     ) -> Result<Advance, String> {
         let at = |tau: f64| self.length + (length - self.length) * (tau / h).min(1.0);
-        let mut m = self.clone();
+        // The muscle the next piece starts from: self, then the last
+        // accepted piece's.
+        let mut accepted: Option<Muscle> = None;
         let mut rates = rates.to_vec();
         let (mut tau, mut hs) = (0.0, h);
-        let (mut pieces, mut tries, mut rejected) = (Vec::new(), 0, 0);
+        let (mut pieces, mut tries) = (Vec::new(), 0);
         let (mut iterations, mut factorizations, mut residuals, mut substeps) = (0, 0, 0, 0);
         loop {
             tries += 1;
@@ -1257,6 +1243,7 @@ impl Muscle {
             };
             let piece_h = end - tau;
             let start = tau;
+            let m = accepted.as_ref().unwrap_or(self);
             let piece = m.advance(p, at(end), piece_h, &|s| activation(start + s))?;
             iterations += piece.iterations;
             factorizations += piece.factorizations;
@@ -1282,13 +1269,11 @@ impl Muscle {
                         residuals,
                         substeps,
                         pieces,
-                        rejected,
                         ..piece
                     });
                 }
-                m = piece.muscle;
+                accepted = Some(piece.muscle);
             } else {
-                rejected += 1;
                 let shrink = if err.is_finite() {
                     (0.9 * (tolerance / err).sqrt()).clamp(0.25, 0.9)
                 } else {
@@ -1313,13 +1298,12 @@ impl Muscle {
         pieces: &[(f64, usize)],
     ) -> Result<Advance, String> {
         let at = |tau: f64| self.length + (length - self.length) * (tau / h).min(1.0);
-        let mut m = self.clone();
         let mut tau = 0.0;
-        let mut done = None;
+        let mut done: Option<Advance> = None;
         for &(end, n) in pieces {
             let start = tau;
+            let m = done.as_ref().map_or(self, |d| &d.muscle);
             let piece = m.advance_in(p, at(end), end - start, &|s| activation(start + s), n)?;
-            m = piece.muscle.clone();
             tau = end;
             done = Some(piece);
         }

@@ -1045,7 +1045,6 @@ mod tests {
             residuals: 0,
             substeps: 1,
             pieces: vec![],
-            rejected: 0,
         };
         let (dx, df) = distance_to_equilibrium(&d, &p, &r);
         let tol = 10.0 * RESIDUAL_TOLERANCE;

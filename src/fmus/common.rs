@@ -15,6 +15,17 @@ pub const SUBSTEP_TOLERANCE_RANGE: Range = Range {
     max: 1.0,
 };
 
+/// The type of both models' `substep_tolerance` parameter: a fraction of
+/// sigma0, [`SUBSTEP_RTOL`] by default, within [`SUBSTEP_TOLERANCE_RANGE`].
+pub fn substep_tolerance_type() -> VarType {
+    real(
+        "1",
+        Some(SUBSTEP_RTOL),
+        Some(SUBSTEP_TOLERANCE_RANGE.min),
+        Some(SUBSTEP_TOLERANCE_RANGE.max),
+    )
+}
+
 /// The units both muscle FMUs declare.
 pub fn units() -> Vec<Unit> {
     let u = |name, kg, m, s| Unit { name, kg, m, s };

@@ -23,7 +23,10 @@
 //! At initialization the muscle is in isometric equilibrium at its initial
 //! length and `initial_activation`.
 
-use super::common::{check_positive, check_range, check_unit_interval, parameter, real, units};
+use super::common::{
+    check_positive, check_range, check_unit_interval, parameter, real, substep_tolerance_type,
+    units,
+};
 pub use super::common::{SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE};
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
@@ -1496,12 +1499,7 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
     v.push(parameter(
         "substep_tolerance",
         "Tolerance of the estimated local error of the SEE stress per substep, as a fraction of sigma0",
-        real(
-            "1",
-            Some(SUBSTEP_RTOL),
-            Some(SUBSTEP_TOLERANCE_RANGE.min),
-            Some(SUBSTEP_TOLERANCE_RANGE.max),
-        ),
+        substep_tolerance_type(),
         Var::SubstepTolerance,
     ));
     let input = |name, description, ty, id| ScalarVariable {

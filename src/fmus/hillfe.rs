@@ -39,8 +39,8 @@ use crate::fmi2::{
     VarType, Variability,
 };
 use crate::fmus::common::{
-    check_positive, check_range, check_unit_interval, input, parameter, real, units, SUBSTEP_RTOL,
-    SUBSTEP_TOLERANCE_RANGE,
+    check_positive, check_range, check_unit_interval, input, parameter, real,
+    substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
 };
 use crate::law::activation::{activation_step, Decay};
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
@@ -369,9 +369,6 @@ pub struct HillFEModel<S: Scene> {
     last: Option<LastStep>,
     /// The last step, when it took substeps ([`Substepped`]).
     substepped: Option<Substepped>,
-    /// The substeps a step tries first (1; the tests force more to check
-    /// the derivatives of substepped steps). Not part of the state.
-    min_substeps: usize,
     decay: Option<Decay>,
     outputs: [f64; N_OUT],
     newton_iterations: i32,
@@ -514,9 +511,9 @@ impl<S: Scene> HillFEModel<S> {
     /// ([`STEP_MAP_DIFFERENCE`]), each difference the step taken again
     /// from the muscle before it in the same substeps.
     fn step_map_derivatives(&self, step: &Substepped) -> Result<(f64, f64), String> {
+        let l = step.level;
+        let decay = Decay::new(l.s, l.h).value;
         let force = |length: f64, command: f64| -> Result<f64, String> {
-            let l = step.level;
-            let decay = Decay::new(l.s, l.h).value;
             let level = StepLevel::new(l.dynamics, l.s, l.a0, command, l.u_dot, l.h, decay);
             let adv = step.before.advance_pieces(
                 &self.params,
@@ -575,7 +572,6 @@ impl<S: Scene> Model for HillFEModel<S> {
             muscle: None,
             last: None,
             substepped: None,
-            min_substeps: 1,
             decay: None,
             outputs: [0.0; N_OUT],
             newton_iterations: 0,
@@ -789,7 +785,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             let tolerance = self.substep_tolerance * self.params.sigma0;
             muscle.advance_controlled(&self.params, end_length, h, &activation, tolerance, &rates)
         } else {
-            muscle.advance_from(&self.params, end_length, h, &activation, self.min_substeps)
+            muscle.advance(&self.params, end_length, h, &activation)
         }
         .map_err(|e| StepError::Discard(format!("length = {end_length} m: {e}")))?;
         let substepped = (adv.substeps > 1).then(|| Substepped {
@@ -1003,7 +999,6 @@ impl<S: Scene> Model for HillFEModel<S> {
             muscle: None,
             last: None,
             substepped: None,
-            min_substeps: 1,
             decay: None,
             outputs: [0.0; N_OUT],
             newton_iterations: 0,
@@ -1319,12 +1314,7 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
     v.push(parameter(
         "substep_tolerance",
         "Tolerance of the estimated local error of the SEE stress per piece (largest over the elements), as a fraction of sigma0",
-        real(
-            "1",
-            Some(SUBSTEP_RTOL),
-            Some(SUBSTEP_TOLERANCE_RANGE.min),
-            Some(SUBSTEP_TOLERANCE_RANGE.max),
-        ),
+        substep_tolerance_type(),
         Var::SubstepTolerance,
     ));
     let integer = |start, (min, max)| VarType::Integer {
@@ -1468,14 +1458,16 @@ of force, stress and activation_level with respect to both inputs come from the 
 mod tests {
     use super::*;
 
-    /// A 6 × 1 muscle at 1.1 L0, activated (level 0.3), stepped once.
-    fn activated_muscle() -> HillFE {
+    /// A 6 × 1 muscle at `stretch` L0 and activation level `level`, with or
+    /// without `adaptive_substeps`.
+    fn muscle(stretch: f64, level: f64, adaptive: bool) -> HillFE {
         let mut m = HillFE::new();
         m.set_integer(Var::NAxial, 6).unwrap();
         m.set_integer(Var::NRadial, 1).unwrap();
-        m.set_real(Var::InitialActivation, 0.3).unwrap();
-        m.set_real(Var::Activation, 0.3).unwrap();
-        m.set_real(Var::Length, 1.1 * DEFAULT_L0).unwrap();
+        m.set_boolean(Var::AdaptiveSubsteps, adaptive).unwrap();
+        m.set_real(Var::InitialActivation, level).unwrap();
+        m.set_real(Var::Activation, level).unwrap();
+        m.set_real(Var::Length, stretch * DEFAULT_L0).unwrap();
         m.initialize().unwrap();
         m
     }
@@ -1484,95 +1476,10 @@ mod tests {
         m.get_real(Var::Out(Output::Force))
     }
 
-    /// The step from `m` to length `l` under command `u`, in (at least)
-    /// `substeps` substeps.
-    fn stepped(m: &HillFE, l: f64, u: f64, substeps: usize) -> HillFE {
+    /// `n` steps of `h` to length `l` under command `u`.
+    fn run(m: &HillFE, l: f64, u: f64, h: f64, n: usize) -> HillFE {
         let mut m = m.clone();
-        m.min_substeps = substeps;
         m.set_real(Var::Length, l).unwrap();
-        m.set_real(Var::Activation, u).unwrap();
-        m.do_step(0.0, 5e-3).unwrap();
-        m
-    }
-
-    /// A step taken in 4 substeps: its directional derivatives are those of
-    /// the whole step's map (central differences of the FMU's own steps,
-    /// with a step 10x the model's), not those of the last substep's
-    /// tangent, which holds that substep's start history fixed and is
-    /// distinctly off here; and a restored copy of the state gives the
-    /// same derivatives bit for bit.
-    #[test]
-    fn a_substepped_step_has_the_derivatives_of_its_step_map() {
-        let before = activated_muscle();
-        let (l, u) = (1.12 * DEFAULT_L0, 0.6);
-        let m = stepped(&before, l, u, 4);
-        assert_eq!(
-            m.substepped.as_ref().map(|s| s.pieces.clone()),
-            Some(vec![(5e-3, 4)])
-        );
-        let d_l = m
-            .partial_derivative(Var::Out(Output::Force), Var::Length)
-            .unwrap();
-        let d_u = m
-            .partial_derivative(Var::Out(Output::Force), Var::Activation)
-            .unwrap();
-        let (el, eu) = (1e-4 * DEFAULT_L0, 1e-4);
-        let fd_l = (force(&stepped(&before, l + el, u, 4))
-            - force(&stepped(&before, l - el, u, 4)))
-            / (2.0 * el);
-        let fd_u = (force(&stepped(&before, l, u + eu, 4))
-            - force(&stepped(&before, l, u - eu, 4)))
-            / (2.0 * eu);
-        assert!(((d_l - fd_l) / fd_l).abs() < 1e-5, "dF/dL {d_l} vs {fd_l}");
-        assert!(((d_u - fd_u) / fd_u).abs() < 1e-5, "dF/du {d_u} vs {fd_u}");
-
-        // The last substep's tangent alone (what the derivatives were
-        // before): off by more than 1 % in the command.
-        let mut last_only = m.clone();
-        last_only.substepped = None;
-        last_only.derivatives = OnceLock::new();
-        let (_, d_u_last) = last_only.force_derivatives().unwrap();
-        assert!(
-            ((d_u_last - fd_u) / fd_u).abs() > 1e-2,
-            "the last substep's tangent {d_u_last} is as good as the map's {fd_u}: the test shows nothing"
-        );
-
-        let mut bytes = Vec::new();
-        m.serialize(&mut bytes);
-        let restored = HillFE::deserialize(&mut bytes.as_slice()).unwrap();
-        assert!(restored.substepped.is_some());
-        assert_eq!(
-            restored
-                .partial_derivative(Var::Out(Output::Force), Var::Length)
-                .unwrap()
-                .to_bits(),
-            d_l.to_bits()
-        );
-        assert_eq!(
-            restored
-                .partial_derivative(Var::Out(Output::Force), Var::Activation)
-                .unwrap()
-                .to_bits(),
-            d_u.to_bits()
-        );
-        // A step in one piece clears the record.
-        let next = stepped(&m, l, u, 1);
-        assert!(next.substepped.is_none());
-    }
-
-    /// A 6 × 1 muscle at rest at `stretch` L0.
-    fn resting_muscle(stretch: f64, adaptive: bool) -> HillFE {
-        let mut m = HillFE::new();
-        m.set_integer(Var::NAxial, 6).unwrap();
-        m.set_integer(Var::NRadial, 1).unwrap();
-        m.set_boolean(Var::AdaptiveSubsteps, adaptive).unwrap();
-        m.set_real(Var::Length, stretch * DEFAULT_L0).unwrap();
-        m.initialize().unwrap();
-        m
-    }
-
-    /// `n` steps of `h` under command `u` at the muscle's length.
-    fn run(mut m: HillFE, u: f64, h: f64, n: usize) -> HillFE {
         m.set_real(Var::Activation, u).unwrap();
         for _ in 0..n {
             m.do_step(0.0, h).unwrap();
@@ -1580,23 +1487,98 @@ mod tests {
         m
     }
 
+    /// (dF/dL, dF/du) through the FMU's partial derivatives.
+    fn derivatives(m: &HillFE) -> (f64, f64) {
+        let d = |known| {
+            m.partial_derivative(Var::Out(Output::Force), known)
+                .unwrap()
+        };
+        (d(Var::Length), d(Var::Activation))
+    }
+
+    /// The force at the end of the step map of `start` in the fixed pieces
+    /// `pieces` (the map a substepped step's derivatives differentiate).
+    fn map_force(start: &HillFE, pieces: &[(f64, usize)], l: f64, u: f64, h: f64) -> f64 {
+        let s = start.params.s;
+        let a0 = start.activation_level;
+        let level = StepLevel::new(true, s, a0, u, 0.0, h, Decay::new(s, h).value);
+        let adv = start
+            .muscle
+            .as_ref()
+            .unwrap()
+            .advance_pieces(&start.params, l, h, &|t| level.at(t), pieces)
+            .unwrap();
+        adv.muscle.disc.reaction(&adv.solution.evaluation.forces)
+    }
+
+    /// A step cut into pieces (level 0.3 -> command 0.6, 1.10 -> 1.12 L0,
+    /// 5 ms, adaptive): its directional derivatives are those of the whole
+    /// step's map (central differences of the same pieces from the same
+    /// start, steps 10x and 5x the model's, extrapolated), not those of the last piece's
+    /// tangent, which holds that piece's start history fixed and is
+    /// distinctly off here; a restored copy of the state gives the same
+    /// derivatives bit for bit; a step in one piece clears the record.
+    #[test]
+    fn a_substepped_step_has_the_derivatives_of_its_step_map() {
+        let before = muscle(1.1, 0.3, true);
+        let (l, u, h) = (1.12 * DEFAULT_L0, 0.6, 5e-3);
+        let m = run(&before, l, u, h, 1);
+        let pieces = m.substepped.as_ref().unwrap().pieces.clone();
+        assert!(pieces.len() > 1, "{pieces:?}");
+        let (d_l, d_u) = derivatives(&m);
+        // Central differences with steps 10x and 5x the model's, Richardson
+        // extrapolated (their δ² terms cancel): this step's map is curved
+        // enough that the 10x difference alone is 1.3e-5 off.
+        let f = |l, u| map_force(&before, &pieces, l, u, h);
+        let richardson = |d: &dyn Fn(f64) -> f64, e: f64| (4.0 * d(e / 2.0) - d(e)) / 3.0;
+        let fd_l = richardson(
+            &|e| (f(l + e, u) - f(l - e, u)) / (2.0 * e),
+            1e-4 * DEFAULT_L0,
+        );
+        let fd_u = richardson(&|e| (f(l, u + e) - f(l, u - e)) / (2.0 * e), 1e-4);
+        assert!(((d_l - fd_l) / fd_l).abs() < 1e-5, "dF/dL {d_l} vs {fd_l}");
+        assert!(((d_u - fd_u) / fd_u).abs() < 1e-5, "dF/du {d_u} vs {fd_u}");
+
+        // The last piece's tangent alone (what the derivatives were
+        // before): off by more than 1 % in the command.
+        let mut last_only = m.clone();
+        last_only.substepped = None;
+        last_only.derivatives = OnceLock::new();
+        let (_, d_u_last) = last_only.force_derivatives().unwrap();
+        assert!(
+            ((d_u_last - fd_u) / fd_u).abs() > 1e-2,
+            "the last piece's tangent {d_u_last} is as good as the map's {fd_u}: the test shows nothing"
+        );
+
+        let mut bytes = Vec::new();
+        m.serialize(&mut bytes);
+        let restored = HillFE::deserialize(&mut bytes.as_slice()).unwrap();
+        assert!(restored.substepped.is_some());
+        let (r_l, r_u) = derivatives(&restored);
+        assert_eq!(r_l.to_bits(), d_l.to_bits());
+        assert_eq!(r_u.to_bits(), d_u.to_bits());
+        let mut one_piece = m.clone();
+        one_piece.set_boolean(Var::AdaptiveSubsteps, false).unwrap();
+        assert!(run(&one_piece, l, u, h, 1).substepped.is_none());
+    }
+
     /// An activation jump 0 → 1 in one step of 20 ms (S h = 1): with
     /// `adaptive_substeps` the step is cut into pieces by the error estimate
     /// and its force is within 1e-2 sigma0 A of the reference (the same step
     /// in 200 steps of 0.1 ms), at least 5x closer than the one
-    /// backward-Euler step without it; and its derivatives are those of its
-    /// step map, the same pieces from the same start (central differences,
-    /// a 10x larger step than the model's). (Differences of whole adaptive
-    /// steps are no check: the pieces the control picks change with the
-    /// inputs, by jumps of the order of its tolerance — here as large as
-    /// the force change of the difference.)
+    /// backward-Euler step without it; its derivatives are those of its
+    /// step map, one-sided in the command at u = 1 (so first order in the
+    /// difference step). (Differences of whole adaptive steps are no check:
+    /// the pieces the control picks change with the inputs, by jumps of the
+    /// order of its tolerance — here as large as the force change of the
+    /// difference.) `-- --nocapture` prints the figures.
     #[test]
     fn adaptive_substeps_control_the_time_error_of_an_activation_jump() {
-        let h = 0.02;
-        let reference = force(&run(resting_muscle(1.05, false), 1.0, h / 200.0, 200));
-        let coarse = force(&run(resting_muscle(1.05, false), 1.0, h, 1));
-        let start = resting_muscle(1.05, true);
-        let adaptive = run(start.clone(), 1.0, h, 1);
+        let (l, h) = (1.05 * DEFAULT_L0, 0.02);
+        let reference = force(&run(&muscle(1.05, 0.0, false), l, 1.0, h / 200.0, 200));
+        let coarse = force(&run(&muscle(1.05, 0.0, false), l, 1.0, h, 1));
+        let start = muscle(1.05, 0.0, true);
+        let adaptive = run(&start, l, 1.0, h, 1);
         let scale = adaptive.params.sigma0 * adaptive.area;
         let (e_adaptive, e_coarse) = (
             (force(&adaptive) - reference).abs() / scale,
@@ -1604,9 +1586,8 @@ mod tests {
         );
         let pieces = adaptive.substepped.as_ref().unwrap().pieces.clone();
         eprintln!(
-            "pieces {} ({:?}), error adaptive {e_adaptive:e}, coarse {e_coarse:e}",
-            pieces.len(),
-            &pieces[..pieces.len().min(4)]
+            "{} pieces; force error / (sigma0 A): adaptive {e_adaptive:e}, one step {e_coarse:e}",
+            pieces.len()
         );
         assert!(pieces.len() > 2, "{pieces:?}");
         assert!(
@@ -1614,33 +1595,12 @@ mod tests {
             "adaptive {e_adaptive:e}, one step {e_coarse:e}"
         );
 
-        let d_l = adaptive
-            .partial_derivative(Var::Out(Output::Force), Var::Length)
-            .unwrap();
-        let d_u = adaptive
-            .partial_derivative(Var::Out(Output::Force), Var::Activation)
-            .unwrap();
-        let map = |l: f64, u: f64| {
-            let level = StepLevel::new(
-                true,
-                start.params.s,
-                0.0,
-                u,
-                0.0,
-                h,
-                Decay::new(start.params.s, h).value,
-            );
-            let m = start.muscle.as_ref().unwrap();
-            let adv = m
-                .advance_pieces(&start.params, l, h, &|t| level.at(t), &pieces)
-                .unwrap();
-            adv.muscle.disc.reaction(&adv.solution.evaluation.forces)
-        };
-        let (l, el, eu) = (1.05 * DEFAULT_L0, 1e-4 * DEFAULT_L0, 1e-4);
-        let fd_l = (map(l + el, 1.0) - map(l - el, 1.0)) / (2.0 * el);
-        let fd_u = (map(l, 1.0) - map(l, 1.0 - eu)) / eu;
+        let (d_l, d_u) = derivatives(&adaptive);
+        let (el, eu) = (1e-4 * DEFAULT_L0, 1e-4);
+        let f = |l, u| map_force(&start, &pieces, l, u, h);
+        let fd_l = (f(l + el, 1.0) - f(l - el, 1.0)) / (2.0 * el);
+        let fd_u = (f(l, 1.0) - f(l, 1.0 - eu)) / eu;
         assert!(((d_l - fd_l) / fd_l).abs() < 1e-5, "dF/dL {d_l} vs {fd_l}");
-        // One-sided at u = 1 on both sides: first order in the step.
         assert!(((d_u - fd_u) / fd_u).abs() < 1e-3, "dF/du {d_u} vs {fd_u}");
     }
 }
