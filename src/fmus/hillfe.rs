@@ -956,8 +956,6 @@ impl<S: Scene> Model for HillFEModel<S> {
                             .f64(l.u)
                             .f64(l.u_dot)
                             .f64(l.h)
-                            .f64(l.end)
-                            .f64(l.d_end_du)
                             .f64(st.end_length)
                             .u64(st.pieces.len() as u64);
                         for &(end, n) in &st.pieces {
@@ -1172,7 +1170,8 @@ impl<S: Scene> Model for HillFEModel<S> {
                 let length = r.f64()?;
                 let (tangent, trend) = solver(&mut r)?;
                 let dynamics = r.bool()?;
-                let v: Vec<f64> = (0..8).map(|_| r.f64()).collect::<Result<_, _>>()?;
+                // s, a0, u, u_dot, h, end length (the level's end follows).
+                let v: Vec<f64> = (0..6).map(|_| r.f64()).collect::<Result<_, _>>()?;
                 let n_pieces = r.u64()?;
                 if !(1..=MAX_PIECE_TRIES as u64).contains(&n_pieces) {
                     return Err(bad(format!("{n_pieces} pieces of a substepped step")));
@@ -1190,7 +1189,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                     && length > 0.0
                     && v.iter().all(|x| x.is_finite())
                     && v[4] > 0.0
-                    && v[7] > 0.0
+                    && v[5] > 0.0
                     && pieces.last().map(|&(t, _)| t) == Some(v[4]);
                 if !valid {
                     return Err(bad("a bad substepped step".into()));
@@ -1205,17 +1204,16 @@ impl<S: Scene> Model for HillFEModel<S> {
                         trend,
                         tolerance: crate::fe::muscle::RESIDUAL_TOLERANCE,
                     },
-                    level: StepLevel {
+                    level: StepLevel::new(
                         dynamics,
-                        s: v[0],
-                        a0: v[1],
-                        u: v[2],
-                        u_dot: v[3],
-                        h: v[4],
-                        end: v[5],
-                        d_end_du: v[6],
-                    },
-                    end_length: v[7],
+                        v[0],
+                        v[1],
+                        v[2],
+                        v[3],
+                        v[4],
+                        Decay::new(v[0], v[4]).value,
+                    ),
+                    end_length: v[5],
                     pieces,
                 })
             } else {
