@@ -249,7 +249,8 @@ def test_activation_outside_unit_interval_is_clamped_with_warning(muscle, value,
 
 @pytest.mark.parametrize("name, value", [("D", -1.0), ("kc", 0.0), ("d", 0.5), ("lambda_dot_min", 1.0),
                                          ("sigma0", math.nan), ("L0", 0.0), ("area", -1.0),
-                                         ("initial_activation", 1.5)])
+                                         ("initial_activation", 1.5), ("substep_tolerance", 0.0),
+                                         ("substep_tolerance", 2.0), ("substep_tolerance", math.nan)])
 def test_bad_parameter_before_initialization(muscle, name, value):
     """An out-of-range parameter set after instantiation is rejected with
     fmi2Error and a log message naming it; the instance keeps the previous
