@@ -1063,6 +1063,7 @@ impl Muscle {
                 Ok(Solved {
                     solution: s,
                     cache: c,
+                    contraction,
                 }) => {
                     iterations += s.iterations;
                     factorizations += s.factorizations;
@@ -1085,12 +1086,15 @@ impl Muscle {
                         done = None;
                         break;
                     }
-                    trend = trend.push(Increment {
-                        dx: s.x.iter().zip(&x).map(|(a, b)| a - b).collect(),
-                        dl: l - l_prev,
-                        da: a_end - a_start,
-                        h: hs,
-                    });
+                    trend = trend.push(
+                        Increment {
+                            dx: s.x.iter().zip(&x).map(|(a, b)| a - b).collect(),
+                            dl: l - l_prev,
+                            da: a_end - a_start,
+                            h: hs,
+                        },
+                        contraction,
+                    );
                     x = s.x.clone();
                     l_prev = l;
                     cache = Some(c);

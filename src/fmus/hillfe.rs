@@ -32,7 +32,9 @@ use std::sync::{Arc, OnceLock};
 
 use crate::fe::mesh::{FibreLayout, Resolution};
 use crate::fe::muscle::{Discretization, Ends, Muscle, Solution, MAX_PIECE_TRIES, MAX_SUBSTEPS};
-use crate::fe::newton::{Anchor, Increment, TangentCache, Trend, TREND_LENGTH};
+use crate::fe::newton::{
+    Anchor, Contraction, Increment, TangentCache, Trend, CONTRACTION_STEPS, TREND_LENGTH,
+};
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
@@ -938,6 +940,14 @@ impl<S: Scene> Model for HillFEModel<S> {
                     for inc in &m.trend.increments {
                         w.f64s(&inc.dx).f64(inc.dl).f64(inc.da).f64(inc.h);
                     }
+                    match m.trend.contraction {
+                        Some(c) => {
+                            w.bool(true).f64(c.theta).u64(c.age as u64);
+                        }
+                        None => {
+                            w.bool(false);
+                        }
+                    }
                 };
                 solver(&mut w, m);
                 // A substepped last step: the muscle before it and its
@@ -1160,6 +1170,16 @@ impl<S: Scene> Model for HillFEModel<S> {
                         return Err(bad("a bad predictor increment".into()));
                     }
                     trend.increments.push(Increment { dx, dl, da, h });
+                }
+                if r.bool()? {
+                    let (theta, age) = (r.f64()?, r.u64()?);
+                    if !(theta.is_finite() && theta >= 0.0 && age <= CONTRACTION_STEPS as u64) {
+                        return Err(bad(format!("a bad contraction ({theta}, {age})")));
+                    }
+                    trend.contraction = Some(Contraction {
+                        theta,
+                        age: age as usize,
+                    });
                 }
                 Ok((tangent, trend))
             };
