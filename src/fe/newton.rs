@@ -39,8 +39,9 @@
 //! at most [`CONTRACTION_STEPS`] steps old, at most [`REFRESH_CONTRACTION`],
 //! and doubled (the reused tangent drifts slowly between steps: θ grows by
 //! ~0.005 per 1 ms step of the pull). x₁ is then accepted when its estimated
-//! error θ/(1 − θ)·Δx₀ is within the tolerance — the same iterate the full
-//! test would accept, one linear solve sooner. (Accepting x₀ by Δx₀/(1 − θ)
+//! error θ/(1 − θ)·Δx₀ is within the tolerance — the iterate the full test
+//! accepts in most steps, one linear solve sooner; every
+//! [`CONTRACTION_STEPS`]-th step at the latest measures θ again. (Accepting x₀ by Δx₀/(1 − θ)
 //! instead would save the residual too, but leaves errors near the
 //! tolerance in the increments the predictor extrapolates, and its
 //! corrections then grow past it: no gain, measured.)
