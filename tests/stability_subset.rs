@@ -251,6 +251,7 @@ fn run_faulty<const DEFECT: u8>() -> CellResult {
         stats: None,
         bounds: uniaxial_bounds,
         integers: &[],
+        booleans: &[],
         fine_budget: FINE_BUDGET,
     };
     run_cell(&faulty_cell(), &Watch::new(Slot::new()), &hooks)
@@ -274,6 +275,7 @@ fn a_nan_output_fails_the_cell() {
             stats: None,
             bounds: uniaxial_bounds,
             integers: &[],
+            booleans: &[],
             fine_budget: FINE_BUDGET,
         },
     );

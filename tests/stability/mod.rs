@@ -475,6 +475,8 @@ pub struct Hooks<M> {
     pub bounds: fn(&Sample) -> Result<(), String>,
     /// Integer parameters set before initialization (e.g. the FE mesh).
     pub integers: &'static [(&'static str, i32)],
+    /// Boolean parameters set before initialization (e.g. an FE option).
+    pub booleans: &'static [(&'static str, bool)],
     /// The run at h / [`FINE_FACTOR`] is made when it costs at most this
     /// many steps.
     pub fine_budget: usize,
@@ -526,8 +528,21 @@ pub fn models() -> Vec<ModelEntry> {
             // of the full matrix, docs/stability.md).
             time_error_controlled: false,
         },
+        // The same FMU with its opt-in time-error control: the FE's
+        // before/after of issue 4 §2 on the same cells.
+        #[cfg(feature = "fe")]
+        ModelEntry {
+            name: FE_ADAPTIVE,
+            run: |c, w| run_cell_named::<HillFE>(FE_ADAPTIVE, c, w, &HILLFE_ADAPTIVE_HOOKS),
+            select: fe_cell,
+            in_ci_subset: false,
+            time_error_controlled: true,
+        },
     ]
 }
+
+/// The name of the FE muscle with `adaptive_substeps = true` in the reports.
+pub const FE_ADAPTIVE: &str = "HillMuscleFE(adaptive)";
 
 /// The FE muscle's part of the grid: its steps cost milliseconds, not
 /// microseconds, so it runs every D, the soft and the stiff corner of
@@ -551,7 +566,17 @@ const HILLFE_HOOKS: Hooks<HillFE> = Hooks {
     stats: None,
     bounds: active_stress_bounds,
     integers: &[("n_axial", 6), ("n_radial", 1)],
+    booleans: &[],
     fine_budget: 20_000,
+};
+
+/// [`HILLFE_HOOKS`] with the FE's opt-in time-error control
+/// (`adaptive_substeps = true`, the default `substep_tolerance`): the FE
+/// half of issue 4 §2's before/after, on the same cells.
+#[cfg(feature = "fe")]
+const HILLFE_ADAPTIVE_HOOKS: Hooks<HillFE> = Hooks {
+    booleans: &[("adaptive_substeps", true)],
+    ..HILLFE_HOOKS
 };
 
 const HILL1D_HOOKS: Hooks<Hill1D> = Hooks {
@@ -565,6 +590,7 @@ const HILL1D_HOOKS: Hooks<Hill1D> = Hooks {
     }),
     bounds: uniaxial_bounds,
     integers: &[],
+    booleans: &[],
     fine_budget: FINE_BUDGET,
 };
 
@@ -813,6 +839,15 @@ impl<M: Model> Fmu<M> {
         // SAFETY: live instance, one-element arrays.
         let st = unsafe { api::set_integer::<M>(self.c, &vr, 1, &value) };
         self.check(&format!("fmi2SetInteger({name} = {value})"), st)
+            .map(|_| ())
+    }
+
+    pub fn set_boolean(&mut self, name: &str, value: bool) -> Result<(), String> {
+        let vr = self.vr(name)?;
+        let v = fmi2Boolean::from(value);
+        // SAFETY: live instance, one-element arrays.
+        let st = unsafe { api::set_boolean::<M>(self.c, &vr, 1, &v) };
+        self.check(&format!("fmi2SetBoolean({name} = {value})"), st)
             .map(|_| ())
     }
 
@@ -1121,6 +1156,9 @@ fn execute_inner<M: Model>(
     for (name, v) in checker.hooks.integers {
         fmu.set_integer(name, *v)?;
     }
+    for (name, v) in checker.hooks.booleans {
+        fmu.set_boolean(name, *v)?;
+    }
     for (id, v) in cell.settings() {
         fmu.set_real(Params::info(id).name, v)?;
     }
@@ -1284,7 +1322,8 @@ pub fn run_cell<M: Model>(cell: &Cell, watch: &Watch, hooks: &Hooks<M>) -> CellR
     run_cell_named(std::any::type_name::<M>(), cell, watch, hooks)
 }
 
-fn run_cell_named<M: Model>(
+/// [`run_cell`] under another model name (one model type in two settings).
+pub fn run_cell_named<M: Model>(
     name: &'static str,
     cell: &Cell,
     watch: &Watch,
