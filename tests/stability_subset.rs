@@ -337,3 +337,32 @@ fn unknown_discard_messages_are_not_explained() {
     )
     .is_some());
 }
+
+/// A reference run (h/100) the cell's time bound cuts is a reference not
+/// affordable, not a failure of the cell; a run at h the bound cuts is.
+#[test]
+fn only_the_run_at_h_fails_a_cell_by_its_time_bound() {
+    let completed = Run {
+        outcome: Some(Outcome::Completed),
+        ..Run::default()
+    };
+    let cut = Run {
+        outcome: Some(Outcome::Timeout { t: 0.5 }),
+        ..Run::default()
+    };
+    let cell = |coarse: &Run, fine: &Run| CellResult {
+        model: "test",
+        cell: faulty_cell(),
+        max_input_rate: 0.0,
+        coarse: coarse.clone(),
+        fine: Some(fine.clone()),
+        fine_skipped: None,
+        agreement: None,
+    };
+    assert!(acceptance(&cell(&completed, &cut)).is_empty());
+    let fails = acceptance(&cell(&cut, &completed));
+    assert!(
+        fails.len() == 1 && fails[0].contains("h: timeout"),
+        "{fails:?}"
+    );
+}

@@ -534,7 +534,10 @@ pub fn models() -> Vec<ModelEntry> {
         ModelEntry {
             name: FE_ADAPTIVE,
             run: |c, w| run_cell_named::<HillFE>(FE_ADAPTIVE, c, w, &HILLFE_ADAPTIVE_HOOKS),
-            select: fe_cell,
+            // The cells with a reference run at h/100 (h >= 1e-2 s; at
+            // 1e-3 s only the 40-step act-toggle program has one): where
+            // the comparison shows what the control changes.
+            select: |c| fe_cell(c) && c.h >= 1e-2,
             in_ci_subset: false,
             time_error_controlled: true,
         },
@@ -1360,9 +1363,21 @@ pub fn run_cell_named<M: Model>(
             None,
         )
     };
-    let agreement = fine
-        .as_ref()
-        .map(|f| agreement(&coarse, f, &checker.params, cell.h));
+    // A reference run cut by the cell's time bound is not affordable
+    // either: no comparison (its steps up to the cut are still checked).
+    let (agreement, fine_skipped) = match fine.as_ref().and_then(|f| f.outcome.as_ref()) {
+        Some(Outcome::Timeout { t }) => (
+            None,
+            Some(format!(
+                "the reference run exceeded the cell's time bound at t = {t}"
+            )),
+        ),
+        _ => (
+            fine.as_ref()
+                .map(|f| agreement(&coarse, f, &checker.params, cell.h)),
+            fine_skipped,
+        ),
+    };
     // The samples have served; a matrix keeps thousands of results
     // (`STABILITY_KEEP_SAMPLES` keeps them, for looking into one cell).
     if std::env::var_os("STABILITY_KEEP_SAMPLES").is_none() {
@@ -1548,9 +1563,10 @@ pub fn explain(message: &str) -> Option<&'static str> {
 
 /// The acceptance criteria of issue 4 §1 a cell fails (empty: it passes): no
 /// error (a crash would end the process, a caught panic is fmi2Fatal, an
-/// error), no timeout, no non-finite output, no completed step outside the
-/// model's bounds, every discard explained — in the run at h and in the
-/// reference run.
+/// error), no timeout of the run at h, no non-finite output, no completed
+/// step outside the model's bounds, every discard explained — in the run at
+/// h and in the reference run (up to where the time bound cut it: a
+/// reference run is made where affordable).
 pub fn acceptance(r: &CellResult) -> Vec<String> {
     let mut fails = Vec::new();
     for (what, run) in
@@ -1558,6 +1574,10 @@ pub fn acceptance(r: &CellResult) -> Vec<String> {
     {
         match &run.outcome {
             Some(Outcome::Error { message }) => fails.push(format!("{what}: error: {message}")),
+            // The reference run is made where affordable; one the time bound
+            // cuts is not (`CellResult::fine_skipped` says so), and the
+            // bound itself holds.
+            Some(Outcome::Timeout { .. }) if what == "h/100" => {}
             Some(Outcome::Timeout { t }) => fails.push(format!("{what}: timeout at t = {t}")),
             None => fails.push(format!("{what}: no outcome")),
             _ => {}
