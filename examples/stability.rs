@@ -238,6 +238,11 @@ fn fmt_t(t: f64) -> String {
     s.to_string()
 }
 
+/// The mean of `c` to two decimals, "—" when it has no samples.
+fn mean2(c: &Counts) -> String {
+    c.mean().map_or("—".to_string(), |v| format!("{v:.2}"))
+}
+
 fn pct(n: usize, of: usize) -> String {
     if of == 0 {
         "—".into()
@@ -380,13 +385,11 @@ fn report(
     }
     // Reference runs the time bound cut: not compared (a reference is made
     // where affordable), listed so that nothing is hidden.
-    let cut: Vec<&CellResult> = results
+    let cut: Vec<(&CellResult, f64)> = results
         .iter()
-        .filter(|r| {
-            matches!(
-                r.fine.as_ref().and_then(|f| f.outcome.as_ref()),
-                Some(Outcome::Timeout { .. })
-            )
+        .filter_map(|r| match r.fine.as_ref().and_then(|f| f.outcome.as_ref()) {
+            Some(Outcome::Timeout { t }) => Some((r, *t)),
+            _ => None,
         })
         .collect();
     if !cut.is_empty() {
@@ -396,16 +399,14 @@ fn report(
              their steps up to the cut are held to every check above: {} cells.\n",
             cut.len()
         );
-        for r in &cut {
-            if let Some(Outcome::Timeout { t }) = r.fine.as_ref().and_then(|f| f.outcome.as_ref()) {
-                let _ = writeln!(
-                    s,
-                    "- {} {}: cut at t = {}",
-                    r.model,
-                    r.cell.key(),
-                    fmt_t(*t)
-                );
-            }
+        for (r, t) in &cut {
+            let _ = writeln!(
+                s,
+                "- {} {}: cut at t = {}",
+                r.model,
+                r.cell.key(),
+                fmt_t(*t)
+            );
         }
     }
     // ---- Outcomes
@@ -673,6 +674,17 @@ fn report(
     s
 }
 
+/// One side of [`fe_time_control`]'s table at one h.
+struct Side {
+    cells: usize,
+    compared: usize,
+    within: usize,
+    worst: f64,
+    discards: usize,
+    iterations: Counts,
+    seconds: f64,
+}
+
 /// Issue 4 §2's before/after for the FE muscle, from this run: the same
 /// cells with one backward-Euler CE–SEE step per communication step
 /// (`HillMuscleFE`, the default) and with `adaptive_substeps = true`
@@ -711,28 +723,28 @@ fn fe_time_control(results: &[CellResult]) -> String {
         .collect();
     let hs: std::collections::BTreeSet<u64> = adaptive.iter().map(|r| r.cell.h.to_bits()).collect();
     for h in hs.into_iter().map(f64::from_bits) {
-        let at = |list: &[&CellResult]| -> (usize, usize, usize, f64, usize, Counts, f64) {
+        let at = |list: &[&CellResult]| -> Side {
             let sel: Vec<&&CellResult> = list.iter().filter(|r| r.cell.h == h).collect();
             let compared: Vec<Agreement> = sel.iter().filter_map(|r| r.agreement).collect();
-            let mut it = Counts::default();
+            let mut iterations = Counts::default();
             for r in &sel {
-                it.sum += r.coarse.iterations.sum;
-                it.n += r.coarse.iterations.n;
+                iterations.sum += r.coarse.iterations.sum;
+                iterations.n += r.coarse.iterations.n;
             }
-            (
-                sel.len(),
-                compared.len(),
-                compared.iter().filter(|a| a.within()).count(),
-                compared.iter().map(|a| a.worst()).fold(0.0, f64::max),
-                sel.iter().map(|r| r.coarse.discards.len()).sum(),
-                it,
-                sel.iter()
+            Side {
+                cells: sel.len(),
+                compared: compared.len(),
+                within: compared.iter().filter(|a| a.within()).count(),
+                worst: compared.iter().map(|a| a.worst()).fold(0.0, f64::max),
+                discards: sel.iter().map(|r| r.coarse.discards.len()).sum(),
+                iterations,
+                seconds: sel
+                    .iter()
                     .map(|r| r.coarse.seconds + r.fine.as_ref().map_or(0.0, |f| f.seconds))
                     .sum(),
-            )
+            }
         };
-        let (n, cp, wp, worst_p, dp, ip, sp) = at(&plain);
-        let (_, ca, wa, worst_a, da, ia, sa) = at(&adaptive);
+        let (a, b) = (at(&plain), at(&adaptive));
         let worst = |c: usize, w: f64| {
             if c == 0 {
                 "—".to_string()
@@ -740,17 +752,21 @@ fn fe_time_control(results: &[CellResult]) -> String {
                 format!("{w:.1e}")
             }
         };
-        let m = |c: &Counts| c.mean().map_or("—".to_string(), |v| format!("{v:.2}"));
         let _ = writeln!(
             s,
-            "| {} | {n} | {} | {} | {} | {} | {dp} → {da} | {} → {} | {sp:.0} → {sa:.0} |",
+            "| {} | {} | {} | {} | {} | {} | {} → {} | {} → {} | {:.0} → {:.0} |",
             fmt_h(h),
-            pct(wp, cp),
-            pct(wa, ca),
-            worst(cp, worst_p),
-            worst(ca, worst_a),
-            m(&ip),
-            m(&ia),
+            a.cells,
+            pct(a.within, a.compared),
+            pct(b.within, b.compared),
+            worst(a.compared, a.worst),
+            worst(b.compared, b.worst),
+            a.discards,
+            b.discards,
+            mean2(&a.iterations),
+            mean2(&b.iterations),
+            a.seconds,
+            b.seconds,
         );
     }
     s
@@ -838,7 +854,6 @@ fn before_after(results: &[CellResult], path: &std::path::Path, rows: &[Row]) ->
                 wa = wa.max(y.worst());
             }
         }
-        let m = |c: &Counts| c.mean().map_or("—".to_string(), |v| format!("{v:.2}"));
         let _ = writeln!(
             s,
             "| {} | {} | {} | {:.1e} | {:.1e} | {db} → {da} | {} → {} | {} → {} | {} |",
@@ -847,11 +862,11 @@ fn before_after(results: &[CellResult], path: &std::path::Path, rows: &[Row]) ->
             pct(na, n),
             wb,
             wa,
-            m(&iters[0]),
-            m(&iters[2]),
-            m(&iters[1]),
-            m(&iters[3]),
-            m(&subs),
+            mean2(&iters[0]),
+            mean2(&iters[2]),
+            mean2(&iters[1]),
+            mean2(&iters[3]),
+            mean2(&subs),
         );
     }
     s

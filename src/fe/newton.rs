@@ -41,10 +41,10 @@
 //! ~0.005 per 1 ms step of the pull). x₁ is then accepted when its estimated
 //! error θ/(1 − θ)·Δx₀ is within the tolerance — the iterate the full test
 //! accepts in most steps, one linear solve sooner; every
-//! [`CONTRACTION_STEPS`]-th step at the latest measures θ again. (Accepting x₀ by Δx₀/(1 − θ)
-//! instead would save the residual too, but leaves errors near the
-//! tolerance in the increments the predictor extrapolates, and its
-//! corrections then grow past it: no gain, measured.)
+//! [`CONTRACTION_STEPS`]-th step at the latest measures θ again.
+//! (Accepting x₀ by Δx₀/(1 − θ) instead would save the residual too, but
+//! leaves errors near the tolerance in the increments the predictor
+//! extrapolates, and its corrections then grow past it: no gain, measured.)
 //!
 //! # Pressures
 //!
@@ -624,17 +624,7 @@ impl Discretization {
         let mut contraction = known.filter(|_| incoming);
         loop {
             if self.converged(p, &ev, &dx, theta, t, input.tolerance) {
-                return Ok(Solved {
-                    solution: Solution {
-                        x,
-                        evaluation: ev,
-                        iterations: spent.solves,
-                        residuals: spent.residuals,
-                        factorizations: spent.factorizations,
-                    },
-                    cache,
-                    contraction,
-                });
+                return Ok(spent.solved(x, ev, cache, contraction));
             }
             if iterations == MAX_NEWTON_ITERATIONS {
                 return Err(format!(
@@ -679,20 +669,11 @@ impl Discretization {
                     warm_from(&mut warm, &e);
                     if let Some(th) = stand_in.filter(|_| alpha == 1.0) {
                         if self.error_within(p, &e, &dx, th / (1.0 - th), t, input.tolerance) {
-                            return Ok(Solved {
-                                solution: Solution {
-                                    x: trial,
-                                    evaluation: e,
-                                    iterations: spent.solves,
-                                    residuals: spent.residuals,
-                                    factorizations: spent.factorizations,
-                                },
-                                cache,
-                                contraction: contraction.map(|c| Contraction {
-                                    age: c.age + 1,
-                                    ..c
-                                }),
+                            let aged = contraction.map(|c| Contraction {
+                                age: c.age + 1,
+                                ..c
                             });
+                            return Ok(spent.solved(trial, e, cache, aged));
                         }
                     }
                     let decreased = match merit {
@@ -937,6 +918,28 @@ impl Counts {
             self.factorizations += 1;
         }
         cache.tangent(disc, p)
+    }
+
+    /// The converged solve at `x` (evaluated as `evaluation`) with what it
+    /// spent.
+    fn solved(
+        &self,
+        x: Vec<f64>,
+        evaluation: Evaluation,
+        cache: Arc<TangentCache>,
+        contraction: Option<Contraction>,
+    ) -> Solved {
+        Solved {
+            solution: Solution {
+                x,
+                evaluation,
+                iterations: self.solves,
+                residuals: self.residuals,
+                factorizations: self.factorizations,
+            },
+            cache,
+            contraction,
+        }
     }
 
     /// Count (and charge to `budget`) a linear solve.
