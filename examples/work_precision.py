@@ -528,7 +528,11 @@ def report(result, figures, command):
         f"below {ROUND_OFF:g} (1D: round-off) or {SOLVER_TOLERANCE:g} (FE: its Newton tolerance) are not fitted.",
         f"- Costs: median of {meta['repeats']} runs; wall time per simulated second from instantiation to "
         "freeing the instance. fmpy: FMU2Slave in a Python loop; C ABI: the same calls from a C loop "
-        "(`examples/cabi_driver.c`). The outputs of the two paths are bit-identical in "
+        "(`examples/cabi_driver.c`). "
+        + (f"{meta['jobs']} cases were measured at a time (`--jobs {meta['jobs']}`), each in its own process "
+           f"(on {meta['machine']['cores']} cores), the longest first; a case's repeats and its two paths stay in "
+           "one process. " if meta.get("jobs", 1) > 1 else "One case at a time. ")
+        + "The outputs of the two paths are bit-identical in "
         f"{sum(r['identical'] for r in rows)} of {sum(not r.get('error') for r in rows)} cases that ran"
         + (f"; {sum(bool(r.get('error')) for r in rows)} cases failed (their rows say why)." if
            any(r.get("error") for r in rows) else "."),
@@ -551,22 +555,74 @@ def report(result, figures, command):
 # Driver
 # --------------------------------------------------------------------------
 
-def run_study(families, refs, scenes, progress=print):
-    rows, ref_results = [], {}
-    for scene in scenes:
-        ref_results[scene.name] = {}
-        for key, ref in refs.items():
-            progress(f"reference {key} {scene.name} h={ref.h:g}")
-            ref_results[scene.name][key] = run_reference(ref, scene)
-        for family in families:
-            ref = ref_results[scene.name][family.model.key]
-            for derivatives in (False, True):
-                for h in family.steps:
-                    row = measure(family, scene, h, derivatives, ref)
-                    rows.append(row)
-                    status = (f"FAILED: {_short(row['error'], 120)}" if row.get("error") else
-                              f"rms={row['rms']:.2e} fmpy={row['fmpy_s_per_s']:.3g} s/s C={row['cabi_s_per_s']:.3g} s/s")
-                    progress(f"{family.label:8s} {scene.name:9s} h={h:<7g} deriv={derivatives!s:5s} {status}")
+def _scene(name):
+    return next(s for s in sc.work_precision_scenes() if s.name == name)
+
+
+def _reference_task(task):
+    ref, scene_name = task
+    return run_reference(ref, _scene(scene_name))
+
+
+def _case_task(task):
+    family, scene_name, h, derivatives, ref = task
+    return measure(family, _scene(scene_name), h, derivatives, ref)
+
+
+def _work(family_or_ref, scene, h):
+    """A rough cost of one run (steps times the FE mesh's size), to hand the
+    longest cases out first when several run at a time."""
+    level = family_or_ref.level or {}
+    size = level.get("n_axial", 1) * level.get("n_radial", 1) ** 2 * (100 if family_or_ref.model.key == "FE" else 1)
+    return scene.t_end / h * size
+
+
+def _run_all(fn, tasks, costs, jobs, done):
+    """``[fn(t) for t in tasks]``, with ``jobs`` > 1 in that many worker
+    processes (forked; the longest tasks first). ``done(i, result)`` is called
+    as each finishes. Each case's repeats stay in one process, so its two
+    paths still alternate run by run."""
+    if jobs <= 1:
+        results = []
+        for i, task in enumerate(tasks):
+            results.append(fn(task))
+            done(i, results[-1])
+        return results
+    import concurrent.futures as cf
+    import multiprocessing
+
+    cabi.compile_driver()  # once, before the workers need it
+    results = [None] * len(tasks)
+    with cf.ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
+        order = sorted(range(len(tasks)), key=lambda i: -costs[i])
+        futures = {pool.submit(fn, tasks[i]): i for i in order}
+        for future in cf.as_completed(futures):
+            i = futures[future]
+            results[i] = future.result()
+            done(i, results[i])
+    return results
+
+
+def run_study(families, refs, scenes, progress=print, jobs=1):
+    """References first, then every (family, scene, derivatives, h) case; the
+    rows come back in that order whatever ``jobs`` is."""
+    ref_tasks = [(ref, scene.name) for scene in scenes for ref in refs.values()]
+    ref_keys = [(scene.name, key) for scene in scenes for key in refs]
+    ref_list = _run_all(_reference_task, ref_tasks, [_work(r, _scene(s), r.h) for r, s in ref_tasks], jobs,
+                        lambda i, _: progress(f"reference {ref_keys[i][1]} {ref_keys[i][0]} h={ref_tasks[i][0].h:g}"))
+    ref_results = {scene.name: {} for scene in scenes}
+    for (scene_name, key), result in zip(ref_keys, ref_list):
+        ref_results[scene_name][key] = result
+    tasks = [(family, scene.name, h, derivatives, ref_results[scene.name][family.model.key])
+             for scene in scenes for family in families for derivatives in (False, True) for h in family.steps]
+
+    def done(i, row):
+        family, scene_name, h, derivatives, _ = tasks[i]
+        status = (f"FAILED: {_short(row['error'], 120)}" if row.get("error") else
+                  f"rms={row['rms']:.2e} fmpy={row['fmpy_s_per_s']:.3g} s/s C={row['cabi_s_per_s']:.3g} s/s")
+        progress(f"{family.label:8s} {scene_name:9s} h={h:<7g} deriv={derivatives!s:5s} {status}")
+
+    rows = _run_all(_case_task, tasks, [_work(t[0], _scene(t[1]), t[2]) for t in tasks], jobs, done)
     return rows, ref_results
 
 
@@ -587,6 +643,8 @@ def main(argv=None):
     parser.add_argument("--out", default=None, help="figure directory (default docs/figures; quick: out/figures)")
     parser.add_argument("--doc", default=None, help="report (default docs/work-precision.md; quick: out/...)")
     parser.add_argument("--json", default=None, help="raw results (default out/work_precision[_quick].json)")
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="cases measured at a time, one process each (default 1; the report says how many)")
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
     mode = "quick" if args.quick else "full"
@@ -618,10 +676,10 @@ def main(argv=None):
             "plan": {k: {"families": [f.label for f in families if f.model.key == k],
                          "steps": list(next(f.steps for f in families if f.model.key == k)),
                          "repeats": next(f.repeats for f in families if f.model.key == k)} for k in refs},
-            "fmus": [fmu_info(m) for m in models], "repeats": families[0].repeats,
+            "fmus": [fmu_info(m) for m in models], "repeats": families[0].repeats, "jobs": max(1, args.jobs),
             "scenes": [{"name": s.name, "t_end": s.t_end, "description": s.description} for s in scenes]}
 
-    rows, ref_results = run_study(families, refs, scenes, progress)
+    rows, ref_results = run_study(families, refs, scenes, progress, max(1, args.jobs))
     meta["load_average_end"] = os.getloadavg()
     meta["references"] = {k: {"label": Family(r.model, r.level, (), 0).label, "h": r.h,
                               "peaks": {s: ref_results[s][k]["peak"] for s in ref_results},

@@ -199,3 +199,30 @@ def test_fe_rows_when_its_fmu_exists(fmu_path, tmp_path):
     assert all(np.isfinite(r["cabi_s_per_s"]) and r["cabi_s_per_s"] > 0 for r in fe_rows)
     assert all(r["max_all"] < 1e-8 for r in fe_rows if r["derivatives"])
     assert "passive" in result["comparison"]
+
+
+def test_several_jobs_give_the_same_rows_in_the_same_order(fmu_path, tmp_path):
+    """``--jobs 2`` measures two cases at a time in forked workers: the rows
+    (errors, steps, order) and the fitted orders are those of ``--jobs 1``,
+    only the costs differ; the report says how the costs were measured."""
+    results = {}
+    for jobs in (1, 2):
+        out = tmp_path / f"jobs{jobs}"
+        rc = wp.main(["--quick", "--no-fe", "--fmu", str(fmu_path), "--steps", "1e-1,5e-2,1e-2",
+                      "--scenes", "passive,fast", "--repeats", "1", "--jobs", str(jobs), "--out", str(out),
+                      "--doc", str(out / "wp.md"), "--json", str(out / "wp.json"), "--quiet"])
+        assert rc == 0
+        results[jobs] = json.loads((out / "wp.json").read_text())
+    keys = ("family", "scene", "h", "derivatives", "steps", "rms", "max", "rms_all", "max_all", "end")
+    one, two = ([tuple(r[k] for k in keys) for r in results[j]["rows"]] for j in (1, 2))
+    assert len(one) == 2 * 2 * 2 * 3 and one == two
+    assert results[1]["orders"] == results[2]["orders"]
+    assert results[2]["meta"]["jobs"] == 2
+    assert "`--jobs 2`" in (tmp_path / "jobs2" / "wp.md").read_text()
+    assert "One case at a time" in (tmp_path / "jobs1" / "wp.md").read_text()
+
+
+def test_run_all_keeps_the_task_order_and_reports_every_task():
+    done = []
+    assert wp._run_all(abs, [-3, 1, -2, 5], [1, 4, 2, 3], 2, lambda i, r: done.append((i, r))) == [3, 1, 2, 5]
+    assert sorted(done) == [(0, 3), (1, 1), (2, 2), (3, 5)]
