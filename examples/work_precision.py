@@ -530,8 +530,8 @@ def report(result, figures, command):
         "freeing the instance. fmpy: FMU2Slave in a Python loop; C ABI: the same calls from a C loop "
         "(`examples/cabi_driver.c`). "
         + (f"{meta['jobs']} cases were measured at a time (`--jobs {meta['jobs']}`), each in its own process "
-           f"(on {meta['machine']['cores']} cores), the longest first; a case's repeats and its two paths stay in "
-           "one process. " if meta.get("jobs", 1) > 1 else "One case at a time. ")
+           f"(on {meta['machine']['cores']} cores), the most steps × mesh size first; a case's repeats and its two paths stay in "
+           "one process. " if meta["jobs"] > 1 else "One case at a time. ")
         + "The outputs of the two paths are bit-identical in "
         f"{sum(r['identical'] for r in rows)} of {sum(not r.get('error') for r in rows)} cases that ran"
         + (f"; {sum(bool(r.get('error')) for r in rows)} cases failed (their rows say why)." if
@@ -556,6 +556,7 @@ def report(result, figures, command):
 # --------------------------------------------------------------------------
 
 def _scene(name):
+    """The scene by name, in a worker process (a scene's signals are not picklable)."""
     return next(s for s in sc.work_precision_scenes() if s.name == name)
 
 
@@ -570,8 +571,10 @@ def _case_task(task):
 
 
 def _work(family_or_ref, scene, h):
-    """A rough cost of one run (steps times the FE mesh's size), to hand the
-    longest cases out first when several run at a time."""
+    """A rough cost of one run, steps times the FE mesh's size, to hand the
+    biggest cases out first when several run at a time (it leaves out how
+    hard each step's Newton solve is: the fast scene's long FE steps cost
+    more than it says)."""
     level = family_or_ref.level or {}
     size = level.get("n_axial", 1) * level.get("n_radial", 1) ** 2 * (100 if family_or_ref.model.key == "FE" else 1)
     return scene.t_end / h * size
@@ -579,7 +582,7 @@ def _work(family_or_ref, scene, h):
 
 def _run_all(fn, tasks, costs, jobs, done):
     """``[fn(t) for t in tasks]``, with ``jobs`` > 1 in that many worker
-    processes (forked; the longest tasks first). ``done(i, result)`` is called
+    processes (forked; the largest ``costs`` first). ``done(i, result)`` is called
     as each finishes. Each case's repeats stay in one process, so its two
     paths still alternate run by run."""
     if jobs <= 1:
@@ -606,9 +609,10 @@ def _run_all(fn, tasks, costs, jobs, done):
 def run_study(families, refs, scenes, progress=print, jobs=1):
     """References first, then every (family, scene, derivatives, h) case; the
     rows come back in that order whatever ``jobs`` is."""
+    by_name = {scene.name: scene for scene in scenes}
     ref_tasks = [(ref, scene.name) for scene in scenes for ref in refs.values()]
     ref_keys = [(scene.name, key) for scene in scenes for key in refs]
-    ref_list = _run_all(_reference_task, ref_tasks, [_work(r, _scene(s), r.h) for r, s in ref_tasks], jobs,
+    ref_list = _run_all(_reference_task, ref_tasks, [_work(r, by_name[s], r.h) for r, s in ref_tasks], jobs,
                         lambda i, _: progress(f"reference {ref_keys[i][1]} {ref_keys[i][0]} h={ref_tasks[i][0].h:g}"))
     ref_results = {scene.name: {} for scene in scenes}
     for (scene_name, key), result in zip(ref_keys, ref_list):
@@ -622,7 +626,7 @@ def run_study(families, refs, scenes, progress=print, jobs=1):
                   f"rms={row['rms']:.2e} fmpy={row['fmpy_s_per_s']:.3g} s/s C={row['cabi_s_per_s']:.3g} s/s")
         progress(f"{family.label:8s} {scene_name:9s} h={h:<7g} deriv={derivatives!s:5s} {status}")
 
-    rows = _run_all(_case_task, tasks, [_work(t[0], _scene(t[1]), t[2]) for t in tasks], jobs, done)
+    rows = _run_all(_case_task, tasks, [_work(t[0], by_name[t[1]], t[2]) for t in tasks], jobs, done)
     return rows, ref_results
 
 
@@ -647,6 +651,7 @@ def main(argv=None):
                         help="cases measured at a time, one process each (default 1; the report says how many)")
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
+    jobs = max(1, args.jobs)
     mode = "quick" if args.quick else "full"
     out_dir = Path(args.out or (REPO / ("out/figures" if args.quick else "docs/figures")))
     doc = Path(args.doc or (REPO / ("out/work-precision-quick.md" if args.quick else "docs/work-precision.md")))
@@ -676,10 +681,10 @@ def main(argv=None):
             "plan": {k: {"families": [f.label for f in families if f.model.key == k],
                          "steps": list(next(f.steps for f in families if f.model.key == k)),
                          "repeats": next(f.repeats for f in families if f.model.key == k)} for k in refs},
-            "fmus": [fmu_info(m) for m in models], "repeats": families[0].repeats, "jobs": max(1, args.jobs),
+            "fmus": [fmu_info(m) for m in models], "repeats": families[0].repeats, "jobs": jobs,
             "scenes": [{"name": s.name, "t_end": s.t_end, "description": s.description} for s in scenes]}
 
-    rows, ref_results = run_study(families, refs, scenes, progress, max(1, args.jobs))
+    rows, ref_results = run_study(families, refs, scenes, progress, jobs)
     meta["load_average_end"] = os.getloadavg()
     meta["references"] = {k: {"label": Family(r.model, r.level, (), 0).label, "h": r.h,
                               "peaks": {s: ref_results[s][k]["peak"] for s in ref_results},
