@@ -1136,13 +1136,24 @@ impl Muscle {
 
 /// Most pieces (accepted and rejected) an error-controlled step tries
 /// before it takes the rest of the step in one piece
-/// ([`Muscle::advance_controlled`]).
-pub const MAX_PIECE_TRIES: usize = 256;
+/// ([`Muscle::advance_controlled`]): the 1D model's bound
+/// ([`crate::fmus::hill1d::MAX_SUBSTEPS`]). A bound that binds leaves the
+/// error uncontrolled, so it sits far above what the grid of
+/// docs/stability.md needs: a CE yielding under fast lengthening (f_v near
+/// its plateau) needs pieces of ~10 µs, thousands in a 0.1 s step
+/// (docs/fe.md, "Time stepping of the CE–SEE law").
+pub const MAX_PIECE_TRIES: usize = 10_000;
 
 /// The shortest piece of an error-controlled step, as a fraction of the
-/// step: such a piece is accepted whatever its estimate (an event faster
-/// than that — an activation jump with S h ≫ 1 — is not resolved further).
-pub const FINEST_PIECE: f64 = 1.0 / 4096.0;
+/// step: such a piece is accepted whatever its estimate (a jump of the
+/// rates — an activation jump with S h ≫ 1, the start of a length ramp —
+/// is not resolved further). 2⁻²⁰, not the 1D model's 2⁻⁴⁰: the
+/// estimate's rates are differences of solved fibre stretches over the
+/// piece, and the equilibrium solve leaves them uncertain by up to its
+/// tolerance (~1e-10), which over a piece of h 2⁻²⁰ is a rate of at most
+/// ~1e-4/h — small against the CE rates the estimate compares — where
+/// over h 2⁻⁴⁰ it would be ~100/h and pollute the next piece's estimate.
+pub const FINEST_PIECE: f64 = 1.0 / (1u64 << 20) as f64;
 
 impl Muscle {
     /// The CE rates λ̇m per element of a committed (sub)step that started
