@@ -3,7 +3,7 @@
 //! (the report) and `docs/stability.csv` (every cell).
 //!
 //! ```sh
-//! cargo run --release --example stability                  # full matrix, ~10 min on 2 cores
+//! cargo run --release --example stability                  # full matrix, ~35 min on 2 cores (2,006 s, 2026-12-03)
 //! cargo run --release --example stability -- --subset      # the CI subset only
 //! cargo run --release --example stability -- --baseline docs/stability-before.csv
 //! ```
