@@ -56,7 +56,7 @@ pub use crate::fe::newton::{
     Budget, Increment, Solution, Solved, StepInput, TangentCache, Trend, RESIDUAL_TOLERANCE,
 };
 use crate::law::force_length::force_length;
-use crate::law::hill_fibre::{backward_euler_error, FibreStress};
+use crate::law::hill_fibre::{backward_euler_error, FibreStress, MAX_CONTROLLED_TRIES};
 use crate::law::stress::IsochoricStress;
 use crate::law::volumetric::volumetric_derivatives;
 use crate::law::{FibreHistory, FibreRate, LawPoint, Params};
@@ -1134,16 +1134,6 @@ impl Muscle {
     }
 }
 
-/// Most pieces (accepted and rejected) an error-controlled step tries
-/// before it takes the rest of the step in one piece
-/// ([`Muscle::advance_controlled`]): the 1D model's bound
-/// ([`crate::fmus::hill1d::MAX_SUBSTEPS`]). A bound that binds leaves the
-/// error uncontrolled, so it sits far above what the grid of
-/// docs/stability.md needs: a CE yielding under fast lengthening (f_v near
-/// its plateau) needs pieces of ~10 µs, thousands in a 0.1 s step
-/// (docs/fe.md, "Time stepping of the CE–SEE law").
-pub const MAX_PIECE_TRIES: usize = 10_000;
-
 /// The shortest piece of an error-controlled step, as a fraction of the
 /// step: such a piece is accepted whatever its estimate (a jump of the
 /// rates — an activation jump with S h ≫ 1, the start of a length ramp —
@@ -1225,7 +1215,7 @@ impl Muscle {
     /// 0.9 √(tolerance/error) (backward Euler's local error is second order
     /// in its length) within [1/4, 0.9]; after an accepted piece the next is
     /// up to 4× longer. A piece of [`FINEST_PIECE`] h is accepted whatever
-    /// its estimate, and after [`MAX_PIECE_TRIES`] tries the rest of the
+    /// its estimate, and after [`MAX_CONTROLLED_TRIES`] tries the rest of the
     /// step is one piece. Each piece is [`Self::advance`] over its part of
     /// the step (length linear in time, the level `activation(τ)`), with
     /// its own substeps when Newton needs them. `rates`: the CE rates at
@@ -1250,7 +1240,7 @@ impl Muscle {
         let (mut iterations, mut factorizations, mut residuals, mut substeps) = (0, 0, 0, 0);
         loop {
             tries += 1;
-            let last_try = tries >= MAX_PIECE_TRIES;
+            let last_try = tries >= MAX_CONTROLLED_TRIES;
             let end = if last_try || tau + hs >= h * (1.0 - 1e-12) {
                 h
             } else {

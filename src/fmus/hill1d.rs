@@ -36,7 +36,7 @@ use crate::fmi2::{
 use crate::law::activation::{activation_step, Decay};
 use crate::law::force_length::force_length;
 use crate::law::force_velocity::branch_included;
-use crate::law::hill_fibre::{backward_euler_error, ce_stretch};
+use crate::law::hill_fibre::{backward_euler_error, ce_stretch, MAX_CONTROLLED_TRIES};
 use crate::law::params::{AREA_RANGE, L0_RANGE};
 use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, evaluable_stretch_range, Sensitivity};
@@ -147,10 +147,6 @@ const N_OUT: usize = OUTPUTS.len();
 /// The two inputs, as indices into the sensitivity table.
 const IN_ACTIVATION: usize = 0;
 const IN_LENGTH: usize = 1;
-
-/// Most tries (accepted and rejected substeps) per step before the rest of
-/// the step is taken in one piece.
-pub const MAX_SUBSTEPS: u32 = 10_000;
 
 /// Estimated local error of the backward-Euler CE–SEE update over a piece of
 /// length `hs`, as SEE stress [Pa]. `start` is the piece's start: the CE
@@ -644,7 +640,7 @@ impl<S: Scene> Hill1DModel<S> {
     /// step, so that the substeps tile the step exactly and are piecewise
     /// constant in the inputs (the step map is then smooth between switches
     /// of the pattern, and its partial derivatives — chained through the
-    /// substeps — are those of the map). After [`MAX_SUBSTEPS`] tries the rest
+    /// substeps — are those of the map). After [`MAX_CONTROLLED_TRIES`] tries the rest
     /// of the step is taken in one piece (backward Euler is stable for any
     /// length: the result stays bounded, only less accurate). `a_end` is the
     /// level at the end of the step. Changes nothing (the caller commits).
@@ -685,7 +681,7 @@ impl<S: Scene> Hill1DModel<S> {
         let mut tries = 0u32;
         loop {
             tries += 1;
-            let forced = tries >= MAX_SUBSTEPS;
+            let forced = tries >= MAX_CONTROLLED_TRIES;
             let end = if forced {
                 WHOLE
             } else {

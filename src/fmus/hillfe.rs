@@ -31,7 +31,7 @@
 use std::sync::{Arc, OnceLock};
 
 use crate::fe::mesh::{FibreLayout, Resolution};
-use crate::fe::muscle::{Discretization, Ends, Muscle, Solution, MAX_PIECE_TRIES, MAX_SUBSTEPS};
+use crate::fe::muscle::{Discretization, Ends, Muscle, Solution, MAX_SUBSTEPS};
 use crate::fe::newton::{
     Anchor, Contraction, Increment, TangentCache, Trend, CONTRACTION_STEPS, TREND_LENGTH,
 };
@@ -45,6 +45,7 @@ use crate::fmus::common::{
     substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
 };
 use crate::law::activation::{activation_step, Decay};
+use crate::law::hill_fibre::MAX_CONTROLLED_TRIES;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{FibreHistory, FibreRate, ParamId, Params, PARAMETERS};
@@ -1193,7 +1194,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                 // s, a0, u, u_dot, h, end length (the level's end follows).
                 let v: Vec<f64> = (0..6).map(|_| r.f64()).collect::<Result<_, _>>()?;
                 let n_pieces = r.u64()?;
-                if !(1..=MAX_PIECE_TRIES as u64).contains(&n_pieces) {
+                if !(1..=u64::from(MAX_CONTROLLED_TRIES)).contains(&n_pieces) {
                     return Err(bad(format!("{n_pieces} pieces of a substepped step")));
                 }
                 let mut pieces = Vec::with_capacity(n_pieces as usize);
@@ -1585,7 +1586,7 @@ mod tests {
     /// lengthening (f_v near its plateau), where the error control needs
     /// pieces of ~10 µs, thousands in the step. Its active stress is within
     /// 1e-3 sigma0 of the same ramp in 100 steps of 1 ms, and the step stays
-    /// inside its work bound ([`MAX_PIECE_TRIES`]). Under the earlier bound
+    /// inside its work bound ([`MAX_CONTROLLED_TRIES`]). Under the earlier bound
     /// (256 tries, pieces ≥ h/4096) the step took its rest in one piece and
     /// was 8e-2 sigma0 off (docs/fe.md). `-- --nocapture` prints the figures.
     #[test]
@@ -1625,7 +1626,7 @@ mod tests {
         let pieces = adaptive.substepped.as_ref().unwrap().pieces.len();
         eprintln!("{pieces} pieces; active stress error / sigma0 {error:e}");
         assert!(
-            pieces < MAX_PIECE_TRIES,
+            pieces < MAX_CONTROLLED_TRIES as usize,
             "{pieces} pieces: the work bound binds"
         );
         assert!(error < 1e-3, "active stress error / sigma0 {error:e}");
