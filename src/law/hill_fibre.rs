@@ -61,7 +61,7 @@ pub fn backward_euler_error(p: &Params, cap: f64, rate_start: f64, rate_end: f64
 /// muscle's `Muscle::advance_controlled`). A bound that binds leaves the
 /// error uncontrolled, so it sits far above what the grid of
 /// docs/stability.md needs: an FE element whose CE yields under fast
-/// lengthening (f_v near its plateau) needs pieces of ~10 µs, thousands in
+/// lengthening (f_v near its plateau) needs pieces of ~10 µs, hundreds in
 /// a 0.1 s step (docs/fe.md, "Time stepping of the CE–SEE law").
 pub const MAX_CONTROLLED_TRIES: u32 = 10_000;
 
