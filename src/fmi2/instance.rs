@@ -274,6 +274,8 @@ pub struct Snapshot<M> {
 pub struct Instance<M: Model> {
     magic: u64,
     type_id: TypeId,
+    /// [`binary_mark`] of the binary that created the instance.
+    binary: usize,
     pub model: M,
     /// Built once at `fmi2Instantiate` from [`Model::variables`];
     /// value reference = index.
@@ -295,6 +297,16 @@ pub struct Instance<M: Model> {
     pub states: HashMap<usize, Box<Snapshot<M>>>,
 }
 
+/// An address unique to the binary this code is linked into. Every FMU
+/// binary links its own copy of this crate and so of `MARK`; its address
+/// tells their instances apart where the type does not: the scenes'
+/// binaries of one variant all export the same type (`fmu_build`'s
+/// `ExportedScene`), so the same `TypeId`. An immutable static, not state.
+fn binary_mark() -> usize {
+    static MARK: u8 = 0;
+    std::ptr::addr_of!(MARK) as usize
+}
+
 impl<M: Model> Instance<M> {
     pub fn new(
         vars: Vec<ScalarVariable<M::Var>>,
@@ -305,6 +317,7 @@ impl<M: Model> Instance<M> {
         Instance {
             magic: INSTANCE_MAGIC,
             type_id: TypeId::of::<M>(),
+            binary: binary_mark(),
             model: M::new(),
             dispatch: vars.iter().map(Dispatch::of).collect(),
             vars,
@@ -318,7 +331,8 @@ impl<M: Model> Instance<M> {
     }
 
     /// The instance behind a component pointer, or `None` for NULL or a
-    /// pointer that is not an instance of this model type.
+    /// pointer that is not an instance of this model type created by this
+    /// binary.
     ///
     /// # Safety
     /// `c` must be NULL or point to readable memory of at least 8 bytes; if
@@ -334,9 +348,9 @@ impl<M: Model> Instance<M> {
                 return None;
             }
             let p = c as *mut Self;
-            // `magic` and `type_id` are the first two fields of a
+            // `magic`, `type_id` and `binary` are the first fields of a
             // `repr(C)` struct: same offsets for every model type.
-            if (*p).type_id != TypeId::of::<M>() {
+            if (*p).type_id != TypeId::of::<M>() || (*p).binary != binary_mark() {
                 return None;
             }
             Some(&mut *p)

@@ -183,3 +183,54 @@ def test_1d_binary_is_much_smaller_than_the_fe_binary(extracted):
     fe = binary(extracted, "HillMuscleFE").stat().st_size
     # Measured: ~0.67 MB against ~3.9 MB.
     assert 3 * one_d < fe, (one_d, fe)
+
+
+def slave(fmu_id: str, name: str):
+    """An initialized instance of dist/<fmu_id>.fmu (fmpy), and its variables."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(fmu_file(fmu_id)))
+    s = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu_file(fmu_id))),
+                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.exitInitializationMode()
+    return s, {v.name: v.valueReference for v in md.modelVariables}
+
+
+@pytest.mark.parametrize("full, scene", [("HillMuscle1D", "HillPassive1D"),
+                                         ("HillMuscle1D", "HillActuator1D"),
+                                         ("HillMuscleFE", "HillPassiveFE")])
+def test_an_instance_of_another_fmu_of_the_same_variant_is_rejected(full, scene):
+    """The scenes' binaries of one variant export the same model type; each
+    binary's functions still reject a component another binary created
+    (fmi2Error, nothing done to it), and that instance goes on exactly like a
+    twin that was never given to the wrong binary."""
+    a, _ = slave(full, "full")
+    b, vrs = slave(scene, "scene")
+    force = (ctypes.c_uint * 1)(vrs["force"])
+    value = (ctypes.c_double * 1)(-1.0)
+    fmi2_error = 3
+    wrong = a.dll  # the full FMU's functions, given the scene's instance
+    wrong.fmi2GetReal.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t,
+                                  ctypes.c_void_p]
+    wrong.fmi2DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double,
+                                 ctypes.c_int]
+    wrong.fmi2FreeInstance.argtypes = [ctypes.c_void_p]
+    wrong.fmi2FreeInstance.restype = None
+    assert wrong.fmi2GetReal(b.component, force, 1, value) == fmi2_error
+    assert value[0] == -1.0
+    assert wrong.fmi2DoStep(b.component, 0.0, 1e-3, 1) == fmi2_error
+    wrong.fmi2FreeInstance(b.component)  # not its instance: nothing happens
+    twin, _ = slave(scene, "twin")  # never given to the wrong binary
+    for s in (b, twin):
+        s.setReal([vrs["length"]], [0.051])
+        s.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    assert b.getReal([vrs["force"]]) == twin.getReal([vrs["force"]])
+    for s in (b, twin):
+        s.terminate()
+        s.freeInstance()
+    a.terminate()
+    a.freeInstance()
