@@ -64,9 +64,8 @@
 //!   mode). The parameter-bound test does not accept one
 //!   ([`Fe::INIT_MAY_FAIL`] is false): every parameter at either end of
 //!   its range, the others at their defaults, initializes.
-//! - **Directional derivatives** only of `force`, `stress` and
-//!   `activation_level` ([`Fe::DERIVATIVE_OUTPUTS`]): any other unknown
-//!   with a known is `fmi2Error` (the model's documented contract).
+//! - **Directional derivatives** of every Real output, as for
+//!   `HillMuscle1D` ([`Fe::DERIVATIVE_OUTPUTS`] is `None`).
 //! - **A larger FMU state**: positions, element histories, the factorised
 //!   tangent's anchor and the predictor's trend, and the geometry and mesh
 //!   the committed muscle was built with. Every snapshot must deserialize
@@ -124,12 +123,11 @@
 //!   without a muscle in `stepComplete` deserialized; its first step was an
 //!   `fmi2Error` into the `error` state.
 //!
-//! In the FMI layer, reachable only with a model that refuses some
-//! derivatives:
-//!
-//! - [`a_refused_directional_derivative_changes_nothing`]: a refused
-//!   `fmi2GetDirectionalDerivative` in initialization mode kept the initial
-//!   values it had computed before the refusal.
+//! In the FMI layer, found when this model still refused the derivatives of
+//! some outputs: a refused `fmi2GetDirectionalDerivative` in initialization
+//! mode kept the initial values it had computed before the refusal (now
+//! `a_refused_directional_derivative_in_initialization_changes_nothing` in
+//! `tests/fmi2_layer.rs`, on a model that refuses one).
 
 #![cfg(feature = "fe")]
 
@@ -179,8 +177,7 @@ impl Subject for Fe {
     const FUNCTIONS_PER_SEQUENCE: usize = usize::MAX;
     const LARGEST_INTEGER_TRIED: i32 = 2;
     const INIT_MAY_FAIL: bool = false;
-    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> =
-        Some(&["force", "stress", "activation_level"]);
+    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = None;
 }
 
 /// Offset of `n_axial` (followed by `n_radial`, both i32) in a serialized
@@ -317,42 +314,6 @@ fn a_specimen_much_wider_than_long_initializes_at_rest() {
             s0 * a
         );
     }
-}
-
-/// Found by `every_function_in_every_state_with_legal_and_illegal_arguments`
-/// (and by `random_call_sequences`); a bug of the FMI layer, reachable with
-/// this model because it refuses the derivatives of some outputs.
-/// Sequence: `fmi2Instantiate`; `fmi2EnterInitializationMode`;
-/// `fmi2SetReal(activation = 0.5)` (the initial values are to be computed
-/// again); `fmi2GetDirectionalDerivative(unknown = cauchy_stress, known =
-/// length)`: `fmi2Error`, `dvUnknown` not written, and the instance
-/// unchanged (the initial values were computed and kept).
-#[test]
-#[cfg_attr(
-    debug_assertions,
-    ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
-)]
-fn a_refused_directional_derivative_changes_nothing() {
-    let f = Fmu::new(false);
-    let (unknown, known) = (vr_named("cauchy_stress"), vr_named("length"));
-    let mut dv = f64::NAN;
-    unsafe {
-        assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
-        let a = vr_named("activation");
-        assert_eq!(api::set_real::<HillFE>(f.c, &a, 1, &0.5), fmi2OK);
-    }
-    let before = f.state_bytes().unwrap();
-    f.book.clear();
-    let st = unsafe {
-        api::get_directional_derivative::<HillFE>(f.c, &unknown, 1, &known, 1, &1.0, &mut dv)
-    };
-    let log: Vec<String> = f.book.take().into_iter().map(|e| e.message).collect();
-    assert_eq!(st, fmi2Error, "{log:?}");
-    assert!(dv.is_nan(), "dvUnknown written: {dv}");
-    assert!(
-        f.state_bytes().unwrap() == before,
-        "the refused call changed the instance: {log:?}"
-    );
 }
 
 /// The bytes of a serialized state with its model's bytes replaced by

@@ -459,6 +459,11 @@ impl<const K: u8> Model for LagM<K> {
             (V::Y, V::U) => Ok(self.gain * k),
             (V::Y, V::W) => Ok(k),
             (V::Z, V::U) => Ok(3.0 * self.gain * k),
+            // A refusal the layer must pass on without changing anything
+            // (`a_refused_directional_derivative_in_initialization_changes_nothing`).
+            (V::Z, V::W) if self.gain < 0.0 => {
+                Err("dz/dw is not provided for a negative gain".into())
+            }
             (V::Z, V::W) => Ok(3.0 * k),
             _ => Err("no such partial derivative".into()),
         }
@@ -2273,6 +2278,35 @@ fn dir_deriv(
         )
     };
     (s, out)
+}
+
+/// In initialization mode with inputs set since the initial values were
+/// last computed, `fmi2GetDirectionalDerivative` computes them first, on a
+/// copy: a call the model refuses (here dz/dw at a negative gain) is
+/// `fmi2Error`, writes nothing to `dvUnknown` and changes nothing (the
+/// instance's state, initial values not yet computed included), and the
+/// same call for a derivative it provides then commits them.
+#[test]
+fn a_refused_directional_derivative_in_initialization_changes_nothing() {
+    let f = Fmu::<Lag>::new();
+    f.ok(unsafe { api::enter_initialization_mode::<Lag>(f.c) });
+    f.ok(f.set_real(&[GAIN, U], &[-2.0, 0.5]));
+    let before = f.state_bytes();
+    let (s, d) = dir_deriv(&f, &[Y, Z], &[U, W], &[1.0, 1.0]);
+    assert_eq!(s, fmi2Error);
+    assert!(f.has_log(fmi2Error, "negative gain"));
+    assert!(d.iter().all(|x| x.is_nan()), "dvUnknown written: {d:?}");
+    assert!(
+        f.state_bytes() == before,
+        "the refused call changed the instance"
+    );
+    let (s, d) = dir_deriv(&f, &[Y], &[U, W], &[1.0, 1.0]);
+    f.ok(s);
+    assert_eq!(d, vec![-2.0 + 1.0]);
+    assert!(
+        f.state_bytes() != before,
+        "the initial values were not committed"
+    );
 }
 
 #[test]

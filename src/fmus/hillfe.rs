@@ -31,7 +31,7 @@
 use std::sync::{Arc, OnceLock};
 
 use crate::fe::mesh::{FibreLayout, Resolution};
-use crate::fe::muscle::{Discretization, Ends, Muscle, Solution, MAX_SUBSTEPS};
+use crate::fe::muscle::{Discretization, Ends, Evaluation, Muscle, Solution, MAX_SUBSTEPS};
 use crate::fe::newton::{
     Anchor, Contraction, Increment, TangentCache, Trend, CONTRACTION_STEPS, TREND_LENGTH,
 };
@@ -340,6 +340,18 @@ struct Substepped {
 /// O(1e-10) relative.
 const STEP_MAP_DIFFERENCE: f64 = 1e-5;
 
+/// Step along the equilibrium's sensitivities (of L0 for the length,
+/// absolute for the level) of the central differences that give the
+/// outputs' derivatives of a step in one piece
+/// ([`HillFEModel::output_jacobian`]): the outputs are evaluated, not
+/// solved for, at x ± ε ∂x/∂(L, a), so the difference has no solver
+/// tolerance in it, only the rounding of outputs of order 1 (~1e-16/ε) and
+/// a truncation of O(ε²).
+const OUTPUT_DIRECTION_STEP: f64 = 1e-6;
+
+/// ∂(output)/∂(length, command) of every output ([`Output`] order).
+type OutputJacobian = [[f64; 2]; N_OUT];
+
 /// The full `HillMuscleFE` (the scene `fmu_build/scenes/hill_muscle_fe.toml`).
 pub type HillFE = HillFEModel<crate::scene::shipped::HillMuscleFE>;
 
@@ -380,6 +392,8 @@ pub struct HillFEModel<S: Scene> {
     /// (dF/dL, dF/du) at the committed state (u the activation command),
     /// computed on first request.
     derivatives: OnceLock<Result<(f64, f64), String>>,
+    /// [`Self::output_jacobian`], computed on first request.
+    output_derivatives: OnceLock<Result<OutputJacobian, String>>,
 }
 
 impl<S: Scene> HillFEModel<S> {
@@ -439,9 +453,14 @@ impl<S: Scene> HillFEModel<S> {
     }
 
     /// Outputs of a converged solution.
-    fn outputs_of(&self, muscle: &Muscle, s: &Solution, activation: f64) -> [f64; N_OUT] {
-        let d = &muscle.disc;
-        let ev = &s.evaluation;
+    /// The outputs of an evaluation `ev` of `d` at muscle length `length`.
+    fn outputs_of(
+        &self,
+        d: &Discretization,
+        length: f64,
+        ev: &Evaluation,
+        activation: f64,
+    ) -> [f64; N_OUT] {
         let force = d.reaction(&ev.forces);
         let stress = force / self.area;
         let (mut v, mut lf, mut lm, mut ls, mut ss) = (0.0, 0.0, 0.0, 0.0, 0.0);
@@ -459,7 +478,7 @@ impl<S: Scene> HillFEModel<S> {
         let mut o = [0.0; N_OUT];
         o[Output::Force as usize] = force;
         o[Output::Stress as usize] = stress;
-        o[Output::CauchyStress as usize] = force * muscle.length / ev.volume;
+        o[Output::CauchyStress as usize] = force * length / ev.volume;
         o[Output::ActivationLevel as usize] = activation;
         o[Output::FibreStretch as usize] = lf / v;
         o[Output::CeStretch as usize] = lm / v;
@@ -473,13 +492,14 @@ impl<S: Scene> HillFEModel<S> {
     }
 
     fn commit(&mut self, muscle: Muscle, s: &Solution, last: LastStep, iterations: usize) {
-        self.outputs = self.outputs_of(&muscle, s, last.activation);
+        self.outputs = self.outputs_of(&muscle.disc, muscle.length, &s.evaluation, last.activation);
         self.activation_level = last.activation;
         self.muscle = Some(muscle);
         self.last = Some(last);
         self.substepped = None;
         self.newton_iterations = i32::try_from(iterations).unwrap_or(i32::MAX);
         self.derivatives = OnceLock::new();
+        self.output_derivatives = OnceLock::new();
     }
 
     /// (dF/dL, dF/du) of the last step's map at the committed state (u the
@@ -491,7 +511,8 @@ impl<S: Scene> HillFEModel<S> {
         self.derivatives
             .get_or_init(|| {
                 if let Some(step) = &self.substepped {
-                    return self.step_map_derivatives(step);
+                    let force = self.step_map_jacobian(step)?[Output::Force as usize];
+                    return Ok((force[0], force[1]));
                 }
                 let (m, last) = match (&self.muscle, &self.last) {
                     (Some(m), Some(l)) => (m, l),
@@ -512,13 +533,13 @@ impl<S: Scene> HillFEModel<S> {
             .map_err(ModelError)
     }
 
-    /// (dF/dL, dF/du) of a substepped step's map by central differences
-    /// ([`STEP_MAP_DIFFERENCE`]), each difference the step taken again
-    /// from the muscle before it in the same substeps.
-    fn step_map_derivatives(&self, step: &Substepped) -> Result<(f64, f64), String> {
+    /// The outputs' derivatives of a substepped step's map by central
+    /// differences ([`STEP_MAP_DIFFERENCE`]), each difference the step
+    /// taken again from the muscle before it in the same substeps.
+    fn step_map_jacobian(&self, step: &Substepped) -> Result<OutputJacobian, String> {
         let l = step.level;
         let decay = Decay::new(l.s, l.h).value;
-        let force = |length: f64, command: f64| -> Result<f64, String> {
+        let outputs = |length: f64, command: f64| -> Result<[f64; N_OUT], String> {
             let level = StepLevel::new(l.dynamics, l.s, l.a0, command, l.u_dot, l.h, decay);
             let adv = step.before.advance_pieces(
                 &self.params,
@@ -527,17 +548,86 @@ impl<S: Scene> HillFEModel<S> {
                 &|tau| level.at(tau),
                 &step.pieces,
             )?;
-            Ok(adv.muscle.disc.reaction(&adv.solution.evaluation.forces))
+            Ok(self.outputs_of(
+                &adv.muscle.disc,
+                adv.muscle.length,
+                &adv.solution.evaluation,
+                level.end,
+            ))
         };
         let (length, u) = (step.end_length, step.level.u);
         let dl = STEP_MAP_DIFFERENCE * self.l0;
-        let d_length = (force(length + dl, u)? - force(length - dl, u)?) / (2.0 * dl);
+        let (longer, shorter) = (outputs(length + dl, u)?, outputs(length - dl, u)?);
         let (lo, hi) = (
             (u - STEP_MAP_DIFFERENCE).max(0.0),
             (u + STEP_MAP_DIFFERENCE).min(1.0),
         );
-        let d_command = (force(length, hi)? - force(length, lo)?) / (hi - lo);
-        Ok((d_length, d_command))
+        let (more, less) = (outputs(length, hi)?, outputs(length, lo)?);
+        let mut jacobian = [[0.0; 2]; N_OUT];
+        for (o, row) in jacobian.iter_mut().enumerate() {
+            *row = [
+                (longer[o] - shorter[o]) / (2.0 * dl),
+                (more[o] - less[o]) / (hi - lo),
+            ];
+        }
+        Ok(jacobian)
+    }
+
+    /// ∂(output)/∂(length, command) of the last step's map for every
+    /// output, on first request. A step in one piece: the equilibrium's
+    /// sensitivities ∂x/∂L, ∂x/∂a from the converged tangent (one
+    /// factorisation, two solves, [`Discretization::sensitivities`]), and
+    /// the outputs evaluated at x ± ε ∂x/∂L (length L ± ε) and
+    /// x ± ε ∂x/∂a (level a ± ε, one-sided at the ends of [0, 1]) with the
+    /// step's start history ([`OUTPUT_DIRECTION_STEP`]); ∂/∂u = ∂/∂a ·
+    /// ∂a/∂u. A substepped step: [`Self::step_map_jacobian`]. The
+    /// extremes over the elements (`volume_ratio_min`/`max`,
+    /// `max_fibre_stretch`) have the derivative of the element that is
+    /// extreme, where that does not change within ±ε.
+    fn output_jacobian(&self) -> Result<OutputJacobian, ModelError> {
+        self.output_derivatives
+            .get_or_init(|| {
+                if let Some(step) = &self.substepped {
+                    return self.step_map_jacobian(step);
+                }
+                let (m, last) = match (&self.muscle, &self.last) {
+                    (Some(m), Some(l)) => (m, l),
+                    _ => return Err("the model is not initialized".into()),
+                };
+                let (p, a) = (&self.params, last.activation);
+                let ev = m
+                    .disc
+                    .evaluate(p, &m.x, a, &last.start, last.rate(), true)?;
+                let factor = m
+                    .disc
+                    .pattern
+                    .factorize(ev.tangent.as_ref().ok_or("no tangent")?)?;
+                let (dx_dl, dx_da, _) = m.disc.sensitivities(&ev, &factor);
+                let at = |dx: &[f64], e: f64, dl: f64, da: f64| -> Result<[f64; N_OUT], String> {
+                    let x: Vec<f64> = m.x.iter().zip(dx).map(|(x, d)| x + e * d).collect();
+                    let ev = m
+                        .disc
+                        .evaluate(p, &x, a + da, &last.start, last.rate(), false)?;
+                    Ok(self.outputs_of(&m.disc, m.length + dl, &ev, a + da))
+                };
+                let el = OUTPUT_DIRECTION_STEP * self.l0;
+                let (longer, shorter) = (at(&dx_dl, el, el, 0.0)?, at(&dx_dl, -el, -el, 0.0)?);
+                let (up, down) = (
+                    OUTPUT_DIRECTION_STEP.min(1.0 - a),
+                    OUTPUT_DIRECTION_STEP.min(a),
+                );
+                let (more, less) = (at(&dx_da, up, 0.0, up)?, at(&dx_da, -down, 0.0, -down)?);
+                let mut jacobian = [[0.0; 2]; N_OUT];
+                for (o, row) in jacobian.iter_mut().enumerate() {
+                    *row = [
+                        (longer[o] - shorter[o]) / (2.0 * el),
+                        (more[o] - less[o]) / (up + down) * last.da_du,
+                    ];
+                }
+                Ok(jacobian)
+            })
+            .clone()
+            .map_err(ModelError)
     }
 }
 
@@ -581,6 +671,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             outputs: [0.0; N_OUT],
             newton_iterations: 0,
             derivatives: OnceLock::new(),
+            output_derivatives: OnceLock::new(),
         };
         // The scene's start values and constants (checked when the scene was
         // resolved; the setters check them again).
@@ -808,7 +899,12 @@ impl<S: Scene> Model for HillFEModel<S> {
             activation: a_end,
             da_du,
         };
-        let outputs = self.outputs_of(&adv.muscle, &adv.solution, a_end);
+        let outputs = self.outputs_of(
+            &adv.muscle.disc,
+            adv.muscle.length,
+            &adv.solution.evaluation,
+            a_end,
+        );
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(StepError::Discard(format!(
                 "non-finite output at length {end_length} m"
@@ -822,9 +918,10 @@ impl<S: Scene> Model for HillFEModel<S> {
         Ok(())
     }
 
-    /// Partial derivatives of `force`, `stress` and `activation_level` with
-    /// respect to both inputs: those of the last step's map
-    /// ([`Self::force_derivatives`]).
+    /// Partial derivatives of every output with respect to both inputs:
+    /// those of the last step's map; of `force` and `stress` from
+    /// [`Self::force_derivatives`], of `activation_level` exactly, of the
+    /// others from [`Self::output_jacobian`].
     fn partial_derivative(&self, unknown: Var, known: Var) -> Result<f64, ModelError> {
         let by_length = match known {
             Var::Length => true,
@@ -843,8 +940,9 @@ impl<S: Scene> Model for HillFEModel<S> {
                 let d = if by_length { dl } else { du };
                 Ok(if o == Output::Force { d } else { d / self.area })
             }
+            Var::Out(o) => Ok(self.output_jacobian()?[o as usize][usize::from(!by_length)]),
             _ => Err(ModelError(
-                "HillMuscleFE provides directional derivatives of force, stress and activation_level only".into(),
+                "directional derivatives are provided for the outputs".into(),
             )),
         }
     }
@@ -1014,6 +1112,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             outputs: [0.0; N_OUT],
             newton_iterations: 0,
             derivatives: OnceLock::new(),
+            output_derivatives: OnceLock::new(),
         };
         let params = r.f64s()?;
         if params.len() != PARAMETERS.len() {
@@ -1472,7 +1571,9 @@ incompressible tetrahedron from locking. One end face fixed; every node of the o
 LU when indefinite), a line search and automatic substepping; a step that still fails returns fmi2Discard with the
 instance unchanged.</p>
 <p><code>force</code> is the axial reaction on the moved face; <code>stress</code> = force / area. Directional derivatives
-of force, stress and activation_level with respect to both inputs come from the converged tangent.</p>
+of every output with respect to both inputs are those of the last step's map: from the converged tangent (force and
+stress exactly; the other outputs evaluated along the equilibrium's sensitivities), or for a step cut into substeps by
+central differences of its map.</p>
 "#;
 
 #[cfg(test)]
@@ -1517,9 +1618,16 @@ mod tests {
         (d(Var::Length), d(Var::Activation))
     }
 
-    /// The force at the end of the step map of `start` in the fixed pieces
-    /// `pieces` (the map a substepped step's derivatives differentiate).
-    fn map_force(start: &HillFE, pieces: &[(f64, usize)], l: f64, u: f64, h: f64) -> f64 {
+    /// The outputs at the end of the step map of `start` in the fixed
+    /// pieces `pieces` (the map a substepped step's derivatives
+    /// differentiate).
+    fn map_outputs(
+        start: &HillFE,
+        pieces: &[(f64, usize)],
+        l: f64,
+        u: f64,
+        h: f64,
+    ) -> [f64; N_OUT] {
         let s = start.params.s;
         let a0 = start.activation_level;
         let level = StepLevel::new(true, s, a0, u, 0.0, h, Decay::new(s, h).value);
@@ -1529,7 +1637,13 @@ mod tests {
             .unwrap()
             .advance_pieces(&start.params, l, h, &|t| level.at(t), pieces)
             .unwrap();
-        adv.muscle.disc.reaction(&adv.solution.evaluation.forces)
+        let m = &adv.muscle;
+        start.outputs_of(&m.disc, m.length, &adv.solution.evaluation, level.end)
+    }
+
+    /// The force of [`map_outputs`].
+    fn map_force(start: &HillFE, pieces: &[(f64, usize)], l: f64, u: f64, h: f64) -> f64 {
+        map_outputs(start, pieces, l, u, h)[Output::Force as usize]
     }
 
     /// A step cut into pieces (level 0.3 -> command 0.6, 1.10 -> 1.12 L0,
@@ -1674,6 +1788,52 @@ mod tests {
         let fd_u = (f(l, 1.0) - f(l, 1.0 - eu)) / eu;
         assert!(((d_l - fd_l) / fd_l).abs() < 1e-5, "dF/dL {d_l} vs {fd_l}");
         assert!(((d_u - fd_u) / fd_u).abs() < 1e-3, "dF/du {d_u} vs {fd_u}");
+    }
+
+    /// Every output's directional derivatives (a step in one piece, and one
+    /// cut into pieces by the error control) against central differences of
+    /// the step map: the step taken again from the same start with the
+    /// inputs moved, in the same pieces ([`map_force`]; steps 1e-4 L0 and
+    /// 1e-4, Richardson extrapolated),
+    /// within 1e-4 of the larger of the two (or of the output's scale per
+    /// unit input, for derivatives that vanish). `-- --nocapture` prints
+    /// them.
+    #[test]
+    fn every_output_has_the_derivatives_of_its_step_map() {
+        for adaptive in [false, true] {
+            let before = muscle(1.1, 0.3, adaptive);
+            let (l, u, h) = (1.12 * DEFAULT_L0, 0.6, 5e-3);
+            let m = run(&before, l, u, h, 1);
+            assert_eq!(m.substepped.is_some(), adaptive);
+            let richardson = |d: &dyn Fn(f64) -> f64, e: f64| (4.0 * d(e / 2.0) - d(e)) / 3.0;
+            let pieces = m.substepped.as_ref().map(|s| s.pieces.clone());
+            for &(o, name, _, _) in OUTPUTS.iter() {
+                let out = |l, u| match &pieces {
+                    None => run(&before, l, u, h, 1).get_real(Var::Out(o)),
+                    Some(pieces) => map_outputs(&before, pieces, l, u, h)[o as usize],
+                };
+                let d = |known| m.partial_derivative(Var::Out(o), known).unwrap();
+                let (d_l, d_u) = (d(Var::Length), d(Var::Activation));
+                let fd_l = richardson(
+                    &|e| (out(l + e, u) - out(l - e, u)) / (2.0 * e),
+                    1e-4 * DEFAULT_L0,
+                );
+                let fd_u = richardson(&|e| (out(l, u + e) - out(l, u - e)) / (2.0 * e), 1e-4);
+                let value = m
+                    .get_real(Var::Out(o))
+                    .abs()
+                    .max(1e-3 * m.params.sigma0 * m.area);
+                eprintln!("{name} (adaptive {adaptive}): d/dL {d_l:e} vs {fd_l:e}, d/du {d_u:e} vs {fd_u:e}");
+                let close = |an: f64, fd: f64, scale: f64| {
+                    (an - fd).abs() <= 1e-4 * an.abs().max(fd.abs()).max(scale)
+                };
+                assert!(
+                    close(d_l, fd_l, value / DEFAULT_L0),
+                    "{name}: d/dL {d_l:e} vs {fd_l:e}"
+                );
+                assert!(close(d_u, fd_u, value), "{name}: d/du {d_u:e} vs {fd_u:e}");
+            }
+        }
     }
 
     /// Without activation dynamics the level is the command, held over the
