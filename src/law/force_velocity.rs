@@ -188,4 +188,32 @@ mod tests {
             }
         }
     }
+
+    /// [`force_velocity_curvature`] is the derivative of eq 12's first
+    /// derivative, on both branches, away from the kinks at λ̇m = 0 and at
+    /// the maximum shortening rate (and 0 beyond it).
+    #[test]
+    #[allow(clippy::approx_constant)] // 3.14 is the paper's lower bound of k_e, not π
+    fn curvature_matches_finite_differences() {
+        let mut lengthening = 0;
+        for &(kc, ke, d) in &[(5.0, 5.0, 1.5), (4.0, 3.14, 1.1), (5.88, 7.56, 1.8)] {
+            for i in 0..200 {
+                let r = -16.5 + 40.0 * (i as f64 + 0.5) / 200.0;
+                if r.abs() < 1e-3 {
+                    continue;
+                }
+                let h = 1e-5;
+                let df = |r| force_velocity(r, MIN, kc, ke, d).1;
+                let fd = (df(r + h) - df(r - h)) / (2.0 * h);
+                let an = force_velocity_curvature(r, MIN, kc, ke, d);
+                assert!(
+                    (fd - an).abs() < 1e-6 * an.abs().max(1e-3),
+                    "r={r} fd={fd} an={an} (kc={kc}, ke={ke}, d={d})"
+                );
+                lengthening += usize::from(r > 0.0 && an < 0.0);
+            }
+            assert_eq!(force_velocity_curvature(1.5 * MIN, MIN, kc, ke, d), 0.0);
+        }
+        assert!(lengthening > 100, "{lengthening}");
+    }
 }

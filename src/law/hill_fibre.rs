@@ -682,6 +682,38 @@ mod tests {
             "dW/da: fd {fd_a} vs {} at lf={lf} a={a} {rate:?}",
             r.dw_dactivation
         );
+        // The SEE stretch's derivatives, and both with respect to the CE
+        // stretch of the history, λm(t) (what chains a step's substeps).
+        let ls = |lf: f64, a: f64, hist: &FibreHistory| {
+            fibre_response(p, lf, a, hist, rate).history.lambda_s
+        };
+        let close = |fd: f64, an: f64, floor: f64, what: &str| {
+            assert!(
+                (fd - an).abs() < 1e-5 * an.abs().max(fd.abs()).max(floor),
+                "{what}: fd {fd} vs {an} at lf={lf} a={a} {rate:?}"
+            );
+        };
+        let fd = (ls(lf + e, a, hist) - ls(lf - e, a, hist)) / (2.0 * e);
+        close(fd, r.dls_dlambda, 1e-2, "dλs/dλ");
+        let fd = (ls(lf, ap, hist) - ls(lf, am, hist)) / (ap - am);
+        close(fd, r.dls_dactivation, 1e-2, "dλs/da");
+        let moved = |d: f64| FibreHistory {
+            lambda_m: hist.lambda_m + d,
+            ..*hist
+        };
+        let eh = 1e-7;
+        let (up, down) = (
+            fibre_response(p, lf, a, &moved(eh), rate),
+            fibre_response(p, lf, a, &moved(-eh), rate),
+        );
+        let fd = (up.history.lambda_s - down.history.lambda_s) / (2.0 * eh);
+        close(fd, r.dls_dhistory, 1e-2, "dλs/dλm(t)");
+        close(
+            (up.w - down.w) / (2.0 * eh),
+            r.dw_dhistory,
+            1e3,
+            "dW/dλm(t)",
+        );
     }
 
     #[test]

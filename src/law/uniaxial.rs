@@ -157,7 +157,7 @@ impl Uniaxial {
 /// stays below c e^700 (finite in
 /// binary64 with margin). With Ī1 = λ² + 2/λ (the incompressible value) the
 /// bounds solve b (λ² + 2/λ − 3) = 700 below and above λ = 1 (bisection).
-/// For b = 23.46: about [0.0613, 5.69]. A guide for messages: beyond it the
+/// For b = 23.46: about [0.0609, 5.70]. A guide for messages: beyond it the
 /// compressible solve may fail or return a state far from J = 1.
 pub fn evaluable_stretch_range(p: &Params) -> (f64, f64) {
     let excess = |l: f64| p.b * (l * l + 2.0 / l - 3.0) - 700.0;
@@ -660,6 +660,23 @@ mod tests {
                     "dσ11/da",
                 );
             }
+            if let FibreRate::Step { .. } = rate {
+                // With respect to the CE stretch of the history, λm(t).
+                let eh = 1e-5;
+                let moved = |d: f64| FibreHistory {
+                    lambda_m: hist.lambda_m + d,
+                    ..hist
+                };
+                let hp = solve(&p, lambda, a, &moved(eh), rate);
+                let hm = solve(&p, lambda, a, &moved(-eh), rate);
+                let fdh = |f: fn(&Uniaxial) -> f64| (f(&hp) - f(&hm)) / (2.0 * eh);
+                let dh = &u.d_dhistory;
+                close(fdh(|u| u.tau11), dh.tau11, "dτ11/dλm(t)");
+                close(fdh(|u| u.mu), dh.mu, "dμ/dλm(t)");
+                close(fdh(|u| u.lambda_f), dh.lambda_f, "dλ̄f/dλm(t)");
+                close(fdh(|u| u.fibre.history.lambda_s), dh.lambda_s, "dλs/dλm(t)");
+                close(fdh(|u| u.cauchy_stress()), u.dcauchy(dh), "dσ11/dλm(t)");
+            }
         }
     }
 
@@ -766,11 +783,11 @@ mod tests {
 
     #[test]
     fn a_non_finite_state_is_an_error_not_a_solution() {
-        // At the edge of the evaluable range the matrix term overflows; the
-        // solve used to return Ok with τ11 = NaN there.
+        // At and beyond the edge of the evaluable range the matrix term
+        // overflows; the solve used to return Ok with τ11 = NaN there.
         let p = Params::default();
         let (lo, _) = evaluable_stretch_range(&p);
-        for lambda in [lo, 0.0613] {
+        for lambda in [lo, 0.999 * lo, 0.9 * lo] {
             match solve_uniaxial(
                 &p,
                 lambda,
@@ -794,7 +811,8 @@ mod tests {
         let p = Params::default();
         let (lo, hi) = evaluable_stretch_range(&p);
         assert!(
-            (lo - 0.0613).abs() < 1e-3 && (hi - 5.69).abs() < 1e-2,
+            // b (λ² + 2/λ − 3) = 700 at b = 23.46 (bisected independently).
+            (lo - 0.060_912).abs() < 1e-6 && (hi - 5.699_75).abs() < 1e-5,
             "[{lo}, {hi}]"
         );
         for lambda in [lo * 1.05, 0.5, 2.0, hi * 0.95] {
