@@ -5,8 +5,8 @@ Every curve is measured by driving an FMU through its inputs with fmpy
 (``muscle_models.simulate`` / ``isometric``) and reading its outputs; the
 analytic curves of MODEL_NOTES are drawn beside them only for comparison::
 
-    python examples/paper_figures.py                      # docs/figures/paper_*.png + docs/paper.md
-    python examples/paper_figures.py --out /tmp/f --doc /tmp/paper.md
+    .venv/bin/python examples/paper_figures.py                      # docs/figures/paper_*.png + docs/paper.md
+    .venv/bin/python examples/paper_figures.py --out /tmp/f --doc /tmp/paper.md
 
 How each quantity is made observable (parameters not named are Table 2's):
 
@@ -585,7 +585,7 @@ def main(argv=None):
                                   "Fig 12: activated elongation (1D solid, FE dashed)"),
     }
     summary = summarise(fig3, fig4, fv, fig7, fig10, sens)
-    command = " ".join(["python examples/paper_figures.py"] + list(sys.argv[1:] if argv is None else argv))
+    command = " ".join([".venv/bin/python examples/paper_figures.py"] + list(sys.argv[1:] if argv is None else argv))
     Path(args.doc).parent.mkdir(parents=True, exist_ok=True)
     Path(args.doc).write_text(page(summary, figures, skipped, command))
     print(json.dumps(_jsonable(summary), indent=1))

@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """Parameter sweeps of the muscle FMUs on dask.distributed: one FMU simulation per task.
 
-    python examples/sweep_dask.py                          # local cluster, every available model
-    python examples/sweep_dask.py --scheduler tcp://host:8786
-    python examples/sweep_dask.py --models 1d --compare-serial --inject-failure
-    python examples/sweep_dask.py --render --out docs/sweeps  # page + figures from a run's tables
+    .venv/bin/python examples/sweep_dask.py                          # local cluster, every available model
+    .venv/bin/python examples/sweep_dask.py --scheduler tcp://host:8786
+    .venv/bin/python examples/sweep_dask.py --models 1d --compare-serial --inject-failure
+    .venv/bin/python examples/sweep_dask.py --render --out docs/sweeps  # page + figures from a run's tables
 
 The sweeps (the paper's sensitivity study, as a full factorial design):
 
@@ -435,7 +435,7 @@ def main(argv=None):
     cluster_info = {"startup_s": time.perf_counter() - started,
                     "workers": len(client.scheduler_info()["workers"]),
                     "cluster": f"scheduler {args.scheduler}" if args.scheduler else "LocalCluster on 127.0.0.1"}
-    command = " ".join(["python examples/sweep_dask.py"] + list(sys.argv[1:] if argv is None else argv))
+    command = " ".join([".venv/bin/python examples/sweep_dask.py"] + list(sys.argv[1:] if argv is None else argv))
     record = {"command": command, "run_at": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
               "machine": f"{os.cpu_count()} cores, {platform.platform()}", "versions": versions(),
               "cluster": cluster_info, "skipped": skipped, "models": {}}

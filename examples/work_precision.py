@@ -7,8 +7,8 @@ activated elongation, the fast pulse + 5 Hz case) and each model variant
 exists), the FMU is run at every communication step h of the sweep, without
 and with input derivatives, and compared with a reference::
 
-    python examples/work_precision.py            # full: docs/work-precision.md, docs/figures/work_precision_*.png
-    python examples/work_precision.py --quick    # < 2 min: out/work-precision-quick.md (used by the tests)
+    .venv/bin/python examples/work_precision.py            # full: docs/work-precision.md, docs/figures/work_precision_*.png
+    .venv/bin/python examples/work_precision.py --quick    # < 2 min: out/work-precision-quick.md (used by the tests)
 
 Definitions (also written into the report):
 
@@ -697,7 +697,7 @@ def main(argv=None):
 
     out_dir.mkdir(parents=True, exist_ok=True)
     figures = dict(zip([s.name for s in scenes], plot(rows, scenes, out_dir)))
-    command = " ".join(["python examples/work_precision.py"] + list(sys.argv[1:] if argv is None else argv))
+    command = " ".join([".venv/bin/python examples/work_precision.py"] + list(sys.argv[1:] if argv is None else argv))
     doc.parent.mkdir(parents=True, exist_ok=True)
     doc.write_text(report(result, {k: os.path.relpath(v, doc.parent) for k, v in figures.items()}, command))
     json_path.parent.mkdir(parents=True, exist_ok=True)

@@ -933,7 +933,9 @@ impl<S: Scene> Hill1DModel<S> {
                 ("shortening", "fv_shortening")
             };
             return Err(StepError::Discard(format!(
-                "the contractile element is {branch} (CE stretch rate {rate:e} 1/s) while carrying                  {:e} Pa, but scene {} has no {branch} branch of the force-velocity relation                  (components.{key} = false): use a scene with it",
+                "the contractile element is {branch} (CE stretch rate {rate:e} 1/s) while carrying \
+                 {:e} Pa, but scene {} has no {branch} branch of the force-velocity relation \
+                 (components.{key} = false): use a scene with it",
                 u.fibre.sigma_see,
                 S::SPEC.model_identifier
             )));
