@@ -46,7 +46,29 @@ impl Range {
 impl fmt::Display for Range {
     /// "finite and in [min, max]", for messages (no equation).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "finite and in [{:e}, {:e}]", self.min, self.max)
+        write!(
+            f,
+            "finite and in [{}, {}]",
+            Bound(self.min),
+            Bound(self.max)
+        )
+    }
+}
+
+/// A bound of a range as a message shows it: plain decimals from 1e-3 to
+/// 1e4 (`0`, `0.95`, `2`, `100`), else exponent form (`1e9`, `1e-15`,
+/// `inf`). For messages; no equation.
+#[derive(Clone, Copy, Debug)]
+pub struct Bound(pub f64);
+
+impl fmt::Display for Bound {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = self.0;
+        if x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
+            write!(f, "{x}")
+        } else {
+            write!(f, "{x:e}")
+        }
     }
 }
 
@@ -368,6 +390,17 @@ impl Params {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ranges_read_as_plain_numbers_in_messages() {
+        let shown = |min, max| between(min, max).to_string();
+        assert_eq!(shown(0.0, 0.95), "finite and in [0, 0.95]");
+        assert_eq!(shown(0.5, 2.0), "finite and in [0.5, 2]");
+        assert_eq!(shown(1.0, 1e9), "finite and in [1, 1e9]");
+        assert_eq!(shown(1e-15, 1e-2), "finite and in [1e-15, 0.01]");
+        assert_eq!(shown(-17.0, 1e4), "finite and in [-17, 1e4]");
+        assert_eq!(Bound(f64::INFINITY).to_string(), "inf");
+    }
 
     #[test]
     fn defaults_are_table_2_and_valid() {

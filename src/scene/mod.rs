@@ -29,6 +29,7 @@
 use std::fmt::Write as _;
 
 use crate::fmi2::{Causality, ScalarVariable, VarType};
+use crate::law::params::Bound;
 
 // Generated (one line per setting), so rustfmt leaves it as the generator
 // writes it.
@@ -719,7 +720,9 @@ fn check_value(name: &str, ty: &VarType, value: Value) -> Result<Value, String> 
                 Ok(Value::Real(x))
             } else {
                 Err(format!(
-                    "parameter '{name}' = {x:?} is out of range: must be finite and in [{lo:e}, {hi:e}]"
+                    "parameter '{name}' = {x:?} is out of range: must be finite and in [{}, {}]",
+                    Bound(lo),
+                    Bound(hi)
                 ))
             }
         }

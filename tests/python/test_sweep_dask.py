@@ -51,7 +51,7 @@ def test_failing_run_is_reported_with_its_parameters(dask_rows, specs):
     assert len(failed) == 1
     row = failed.iloc[0]
     assert row["run_id"] == specs[-1]["run_id"] and row["d"] == 0.5 and row["scene"] == "passive"
-    assert "d = 0.5" in row["error"] and "[1e0, 1e2]" in row["error"]
+    assert "d = 0.5" in row["error"] and "[1, 100]" in row["error"]
     assert pd.isna(row["stress_20"])
 
 
