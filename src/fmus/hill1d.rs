@@ -33,7 +33,7 @@ use crate::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
     VarType, Variability,
 };
-use crate::law::activation::{activation_step, Decay};
+use crate::law::activation::{level_at, Decay};
 use crate::law::force_length::force_length;
 use crate::law::force_velocity::branch_included;
 use crate::law::hill_fibre::{backward_euler_error, ce_stretch, MAX_CONTROLLED_TRIES};
@@ -599,32 +599,24 @@ impl<S: Scene> Hill1DModel<S> {
         self.statistics = Diagnostics(statistics);
     }
 
-    /// The activation level `tau` into the step and ∂a/∂u: the exact dynamics
-    /// for the command held (or linear) over the step, or without dynamics the
-    /// command itself (clamped into [0, 1]). `decay` is e^(−S tau).
+    /// The activation level `tau` into the step and ∂a/∂u ([`level_at`]:
+    /// the exact dynamics for the command held (or linear) over the step, or
+    /// without dynamics the command itself). `decay` is e^(−S tau).
     fn level(&self, tau: f64, decay: f64) -> (f64, f64) {
         if !Self::CE {
             // No contractile element: no activation (the command is 0 and
             // nothing reads the level).
             return (0.0, 0.0);
         }
-        if S::SPEC.components.activation_dynamics && self.activation_dynamics {
-            activation_step(
-                self.activation_level,
-                self.command,
-                self.command_rate,
-                self.params.s,
-                tau,
-                decay,
-            )
-        } else {
-            let a = self.command + tau * self.command_rate;
-            if (0.0..=1.0).contains(&a) {
-                (a, 1.0)
-            } else {
-                (a.clamp(0.0, 1.0), 0.0)
-            }
-        }
+        level_at(
+            S::SPEC.components.activation_dynamics && self.activation_dynamics,
+            self.activation_level,
+            self.command,
+            self.command_rate,
+            self.params.s,
+            tau,
+            decay,
+        )
     }
 
     /// The step from the committed state to stretch `lambda_end` over `h`,

@@ -44,7 +44,7 @@ use crate::fmus::common::{
     check_positive, check_range, check_unit_interval, input, parameter, real,
     substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
 };
-use crate::law::activation::{activation_step, Decay};
+use crate::law::activation::{level_at, Decay};
 use crate::law::hill_fibre::MAX_CONTROLLED_TRIES;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
@@ -253,11 +253,8 @@ impl LastStep {
 
 /// The activation level over one step of length `h` (MODEL_NOTES
 /// "Activation"): from level `a0` under the command `u` with rate `u_dot`,
-/// by the exact dynamics (paper eq 10), or without them
-/// (`activation_dynamics = false`) the command itself, `u + τ u_dot`
-/// clamped to [0, 1] at every τ into the step: the input holds over the
-/// step (MODEL_NOTES "Co-simulation conventions"), so a substep sees the
-/// same level as the whole step would, as in `HillMuscle1D`.
+/// with or without the dynamics ([`level_at`], which `HillMuscle1D` reads
+/// too), at its end and at every τ into it (for substeps).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct StepLevel {
     dynamics: bool,
@@ -274,16 +271,7 @@ struct StepLevel {
 impl StepLevel {
     /// `decay` = e^(−S h) ([`Decay`]).
     fn new(dynamics: bool, s: f64, a0: f64, u: f64, u_dot: f64, h: f64, decay: f64) -> StepLevel {
-        let (end, d_end_du) = if dynamics {
-            activation_step(a0, u, u_dot, s, h, decay)
-        } else {
-            let a = u + h * u_dot;
-            if (0.0..=1.0).contains(&a) {
-                (a, 1.0)
-            } else {
-                (a.clamp(0.0, 1.0), 0.0)
-            }
-        };
+        let (end, d_end_du) = level_at(dynamics, a0, u, u_dot, s, h, decay);
         StepLevel {
             dynamics,
             s,
@@ -299,20 +287,23 @@ impl StepLevel {
     /// The level at τ ∈ [0, h] into the step.
     fn at(&self, tau: f64) -> f64 {
         if tau >= self.h {
-            self.end
-        } else if self.dynamics {
-            activation_step(
-                self.a0,
-                self.u,
-                self.u_dot,
-                self.s,
-                tau,
-                (-self.s * tau).exp(),
-            )
-            .0
-        } else {
-            (self.u + tau * self.u_dot).clamp(0.0, 1.0)
+            return self.end;
         }
+        let decay = if self.dynamics {
+            (-self.s * tau).exp()
+        } else {
+            1.0 // unused without the dynamics
+        };
+        level_at(
+            self.dynamics,
+            self.a0,
+            self.u,
+            self.u_dot,
+            self.s,
+            tau,
+            decay,
+        )
+        .0
     }
 }
 
@@ -506,12 +497,15 @@ impl<S: Scene> HillFEModel<S> {
     /// activation command): from the converged tangent (one factorisation
     /// and two solves, [`Discretization::force_derivatives`]; dF/du =
     /// dF/da · ∂a/∂u), or for a step that took substeps by central
-    /// differences of its map ([`Substepped`]).
+    /// differences of its map ([`Substepped`], [`Self::output_jacobian`]).
     fn force_derivatives(&self) -> Result<(f64, f64), ModelError> {
         self.derivatives
             .get_or_init(|| {
-                if let Some(step) = &self.substepped {
-                    let force = self.step_map_jacobian(step)?[Output::Force as usize];
+                if self.substepped.is_some() {
+                    // The step map's differences give every output at once:
+                    // kept for the other outputs' derivatives.
+                    let jacobian = self.output_jacobian().map_err(|ModelError(m)| m)?;
+                    let force = jacobian[Output::Force as usize];
                     return Ok((force[0], force[1]));
                 }
                 let (m, last) = match (&self.muscle, &self.last) {

@@ -27,6 +27,32 @@ pub fn activation_step(a0: f64, u0: f64, u_dot: f64, s: f64, h: f64, decay: f64)
     }
 }
 
+/// The activation level τ into a step and ∂a/∂u0 (MODEL_NOTES "Activation"
+/// and "Co-simulation conventions": the command u(τ) = u0 + u_dot τ holds over
+/// the step). With the dynamics, [`activation_step`] over τ (`decay` =
+/// e^(−S τ)); without them (a = u), the command itself, clamped to [0, 1]
+/// (∂a/∂u0 = 0 where clamped; `decay` unused). Every substep of a step reads
+/// its level here, as the whole step would.
+pub fn level_at(
+    dynamics: bool,
+    a0: f64,
+    u0: f64,
+    u_dot: f64,
+    s: f64,
+    tau: f64,
+    decay: f64,
+) -> (f64, f64) {
+    if dynamics {
+        return activation_step(a0, u0, u_dot, s, tau, decay);
+    }
+    let a = u0 + tau * u_dot;
+    if (0.0..=1.0).contains(&a) {
+        (a, 1.0)
+    } else {
+        (a.clamp(0.0, 1.0), 0.0)
+    }
+}
+
 /// The decay factor e^(−S h) of [`activation_step`] for one (S, h). A model
 /// keeps the last one: a co-simulation usually repeats its step size, so the
 /// exponential is evaluated once instead of every step.

@@ -163,20 +163,28 @@ mod tests {
         assert!((fv(1e9).0 - fmax).abs() < 1e-6);
     }
 
-    #[test]
-    #[allow(clippy::approx_constant)] // 3.14 is the paper's lower bound of k_e, not π
-    fn derivative_matches_finite_differences() {
-        for &(kc, ke, d) in &[
-            (5.0, 5.0, 1.5),
-            (4.0, 3.14, 1.1),
-            (5.88, 7.56, 1.8),
-            (5.0, 5.0, 1.0),
-        ] {
+    /// Every (k_c, k_e, d) of `sets` at 200 rates λ̇m across both branches
+    /// (−16.5 … 23.5 1/s, beside the maximum shortening rate `MIN`), away
+    /// from the kink at λ̇m = 0.
+    fn on_the_rate_grid(sets: &[(f64, f64, f64)], mut check: impl FnMut(f64, f64, f64, f64)) {
+        for &(kc, ke, d) in sets {
             for i in 0..200 {
                 let r = -16.5 + 40.0 * (i as f64 + 0.5) / 200.0;
-                if r.abs() < 1e-3 {
-                    continue;
+                if r.abs() >= 1e-3 {
+                    check(kc, ke, d, r);
                 }
+            }
+        }
+    }
+
+    #[allow(clippy::approx_constant)] // 3.14 is the paper's lower bound of k_e, not π
+    const SETS: [(f64, f64, f64); 3] = [(5.0, 5.0, 1.5), (4.0, 3.14, 1.1), (5.88, 7.56, 1.8)];
+
+    #[test]
+    fn derivative_matches_finite_differences() {
+        on_the_rate_grid(
+            &[SETS[0], SETS[1], SETS[2], (5.0, 5.0, 1.0)],
+            |kc, ke, d, r| {
                 let h = 1e-6;
                 let f = |r| force_velocity(r, MIN, kc, ke, d).0;
                 let fd = (f(r + h) - f(r - h)) / (2.0 * h);
@@ -185,35 +193,30 @@ mod tests {
                     (fd - an).abs() < 1e-6 * (1.0 + an.abs()),
                     "r={r} fd={fd} an={an}"
                 );
-            }
-        }
+            },
+        );
     }
 
     /// [`force_velocity_curvature`] is the derivative of eq 12's first
     /// derivative, on both branches, away from the kinks at λ̇m = 0 and at
     /// the maximum shortening rate (and 0 beyond it).
     #[test]
-    #[allow(clippy::approx_constant)] // 3.14 is the paper's lower bound of k_e, not π
     fn curvature_matches_finite_differences() {
         let mut lengthening = 0;
-        for &(kc, ke, d) in &[(5.0, 5.0, 1.5), (4.0, 3.14, 1.1), (5.88, 7.56, 1.8)] {
-            for i in 0..200 {
-                let r = -16.5 + 40.0 * (i as f64 + 0.5) / 200.0;
-                if r.abs() < 1e-3 {
-                    continue;
-                }
-                let h = 1e-5;
-                let df = |r| force_velocity(r, MIN, kc, ke, d).1;
-                let fd = (df(r + h) - df(r - h)) / (2.0 * h);
-                let an = force_velocity_curvature(r, MIN, kc, ke, d);
-                assert!(
-                    (fd - an).abs() < 1e-6 * an.abs().max(1e-3),
-                    "r={r} fd={fd} an={an} (kc={kc}, ke={ke}, d={d})"
-                );
-                lengthening += usize::from(r > 0.0 && an < 0.0);
-            }
+        on_the_rate_grid(&SETS, |kc, ke, d, r| {
+            let h = 1e-5;
+            let df = |r| force_velocity(r, MIN, kc, ke, d).1;
+            let fd = (df(r + h) - df(r - h)) / (2.0 * h);
+            let an = force_velocity_curvature(r, MIN, kc, ke, d);
+            assert!(
+                (fd - an).abs() < 1e-6 * an.abs().max(1e-3),
+                "r={r} fd={fd} an={an} (kc={kc}, ke={ke}, d={d})"
+            );
+            lengthening += usize::from(r > 0.0 && an < 0.0);
+        });
+        assert!(lengthening > 100, "{lengthening}");
+        for &(kc, ke, d) in &SETS {
             assert_eq!(force_velocity_curvature(1.5 * MIN, MIN, kc, ke, d), 0.0);
         }
-        assert!(lengthening > 100, "{lengthening}");
     }
 }

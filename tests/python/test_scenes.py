@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import math
 import shutil
 import tomllib
@@ -271,3 +272,34 @@ def test_fe_scenes_equal_the_full_fe_muscle_bit_for_bit(fmu_id):
     s, f = run_pair(fmu_id, "HillMuscleFE", 8, 5e-3, fe_inputs)
     assert_bitwise(s, f, fmu_id)
     assert s[-1, 0] > 0.0
+
+
+@pytest.mark.parametrize("full, scene", [("HillMuscle1D", "HillPassive1D"),
+                                         ("HillMuscle1D", "HillActuator1D"),
+                                         ("HillMuscleFE", "HillPassiveFE")])
+def test_an_instance_of_another_fmu_of_the_same_variant_is_rejected(full, scene):
+    """The scenes' binaries of one variant export the same model type; each
+    binary's functions still reject a component another binary created
+    (fmi2Error, nothing done to it), and that instance goes on exactly like a
+    twin that was never given to the wrong binary."""
+    a, b, twin = Slave(full, "full"), Slave(scene, "scene"), Slave(scene, "twin")
+    force = (ctypes.c_uint * 1)(b.vr["force"])
+    value = (ctypes.c_double * 1)(-1.0)
+    fmi2_error = 3
+    wrong = a.fmu.dll  # the full FMU's functions, given the scene's instance
+    wrong.fmi2GetReal.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t,
+                                  ctypes.c_void_p]
+    wrong.fmi2DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double,
+                                 ctypes.c_int]
+    wrong.fmi2FreeInstance.argtypes = [ctypes.c_void_p]
+    wrong.fmi2FreeInstance.restype = None
+    assert wrong.fmi2GetReal(b.fmu.component, force, 1, value) == fmi2_error
+    assert value[0] == -1.0
+    assert wrong.fmi2DoStep(b.fmu.component, 0.0, 1e-3, 1) == fmi2_error
+    wrong.fmi2FreeInstance(b.fmu.component)  # not its instance: nothing happens
+    for s in (b, twin):
+        s.set(length=0.051)
+        s.step(1e-3)
+    assert b.get(["force"]) == twin.get(["force"])
+    for s in (a, b, twin):
+        s.close()
