@@ -2309,6 +2309,56 @@ fn a_refused_directional_derivative_in_initialization_changes_nothing() {
     );
 }
 
+/// FMI 2.0 section 2.1.9 with 2.2.8: in initialization mode the knowns
+/// include the parameters (`initial = "exact"`); the layer differentiates
+/// the model's initialization with respect to a Real one.
+#[test]
+fn in_initialization_mode_real_parameters_are_knowns() {
+    let f = Fmu::<Lag>::new();
+    f.ok(unsafe { api::enter_initialization_mode::<Lag>(f.c) });
+    f.ok(f.set_real(&[GAIN, U, W], &[3.0, 0.5, 0.25]));
+    // Initial equilibrium y = gain u + w, z = 3 y: d/d gain = (u, 3 u);
+    // y and z do not depend on tau (not in their depends_on): 0.
+    let (s, d) = dir_deriv(&f, &[Y, Z], &[GAIN, TAU, U], &[1.0, 7.0, 2.0]);
+    f.ok(s);
+    approx::assert_relative_eq!(d[0], 0.5 + 2.0 * 3.0, max_relative = 1e-12);
+    approx::assert_relative_eq!(d[1], 3.0 * (0.5 + 2.0 * 3.0), max_relative = 1e-12);
+    assert_eq!(f.real(GAIN), 3.0, "the instance's parameter moved");
+    assert_eq!(f.real(Y), 3.0 * 0.5 + 0.25);
+    // Only Real parameters: an Integer one is refused, naming the rule.
+    let (s, _) = dir_deriv(&f, &[Y], &[MODE], &[1.0]);
+    assert_eq!(s, fmi2Error);
+    assert!(f.has_log(
+        fmi2Error,
+        "'mode' (value reference 6, Integer parameter) cannot be a known: knowns must be Real inputs or Real parameters"
+    ));
+    // A difference step the model refuses: an error naming the unknowns,
+    // the parameter and the model's reason, and nothing changes.
+    f.ok(f.set_real(&[GAIN], &[f64::MAX]));
+    let before = f.state_bytes();
+    let (s, d) = dir_deriv(&f, &[Y, Z], &[GAIN], &[1.0]);
+    assert_eq!(s, fmi2Error);
+    assert!(d.iter().all(|x| x.is_nan()), "dvUnknown written: {d:?}");
+    assert!(f.has_log(
+        fmi2Error,
+        "d(y, z)/d(gain) in initialization mode: the difference step to inf was refused: gain = inf is not finite"
+    ));
+    assert!(
+        f.state_bytes() == before,
+        "the refused call changed the instance"
+    );
+    // After initialization the knowns are the inputs only (section 2.2.8:
+    // the knowns at a communication point).
+    f.ok(f.set_real(&[GAIN], &[3.0]));
+    f.ok(unsafe { api::exit_initialization_mode::<Lag>(f.c) });
+    let (s, _) = dir_deriv(&f, &[Y], &[GAIN], &[1.0]);
+    assert_eq!(s, fmi2Error);
+    assert!(f.has_log(
+        fmi2Error,
+        "'gain' (value reference 3, Real parameter) cannot be a known: knowns must be Real inputs (Real parameters only in initialization mode)"
+    ));
+}
+
 #[test]
 fn directional_derivative_is_the_linear_combination() {
     let f = Fmu::<Lag>::new();

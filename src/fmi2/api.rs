@@ -22,10 +22,15 @@
 use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+use super::initial_sensitivity::initial_parameter_column;
 use super::instance::{decode_state, encode_state, Instance, LogCategory, LogSink};
-use super::model::{Causality, Model, ModelError, ScalarVariable, SetOutcome, StepError, VarType};
+use super::model::{
+    Causality, Initial, Model, ModelError, ScalarVariable, SetOutcome, StepError, VarType,
+};
 use super::model_description::guid_for;
-use super::rules::{causality_name, type_name, variability_name, Dispatch, ValueKind};
+use super::rules::{
+    causality_name, effective_initial, type_name, variability_name, Dispatch, ValueKind,
+};
 use super::state::{self, FmiState, StateSet};
 use super::types::*;
 
@@ -1120,9 +1125,13 @@ pub unsafe fn deserialize_fmu_state<M: Model>(
 // ---------------------------------------------------------------------------
 
 /// `fmi2GetDirectionalDerivative` (FMI 2.0 spec, section 2.1.9):
-/// `dvUnknown[i] = Σ_j ∂unknown_i/∂known_j · dvKnown[j]`, with the partial
-/// derivatives from [`Model::partial_derivative`]. Unknowns must be Real
-/// outputs and knowns Real inputs.
+/// `dvUnknown[i] = Σ_j ∂unknown_i/∂known_j · dvKnown[j]`. Unknowns must be
+/// Real outputs. Knowns are Real inputs, with the partial derivatives from
+/// [`Model::partial_derivative`], and in initialization mode also Real
+/// parameters (the knowns of `<InitialUnknowns>`, section 2.2.8), with the
+/// partial derivatives of the initial values from
+/// [`initial_parameter_column`] (0 where the unknown's `depends_on` does not
+/// name the parameter).
 ///
 /// # Safety
 /// `c` a live instance; arrays of the given lengths.
@@ -1144,34 +1153,54 @@ pub unsafe fn get_directional_derivative<M: Model>(
             let knowns = in_slice(&inst.log, F, "vKnown_ref", v_known_ref, n_known)?;
             let dv_k = in_slice(&inst.log, F, "dvKnown", dv_known, n_known)?;
             let dv_u = out_slice(&inst.log, F, "dvUnknown", dv_unknown, n_unknown)?;
-            let check = |vr: fmi2ValueReference, causality: Causality, role: &str| {
-                let v = lookup(&inst.vars, &inst.log, F, vr)?;
-                if v.causality != causality || !matches!(v.ty, VarType::Real { .. }) {
+            let initializing = inst.layer.fmi_state == FmiState::InitializationMode;
+            let refuse =
+                |v: &ScalarVariable<M::Var>, vr: fmi2ValueReference, role: &str, rule: &str| {
                     inst.log.error(&format!(
-                        "{F}: '{}' (value reference {vr}, {} {}) cannot be {role}: {role}s must be Real {}s",
+                        "{F}: '{}' (value reference {vr}, {} {}) cannot be {role}: {rule}",
                         v.name,
                         type_name(&v.ty),
-                        causality_name(v.causality),
-                        causality_name(causality)
+                        causality_name(v.causality)
                     ));
-                    return Err(fmi2Error);
-                }
-                Ok((v.id, v.name))
-            };
+                    fmi2Error
+                };
             let u_ids = unknowns
                 .iter()
-                .map(|&vr| check(vr, Causality::Output, "an unknown"))
+                .map(|&vr| {
+                    let v = lookup(&inst.vars, &inst.log, F, vr)?;
+                    if v.causality != Causality::Output || !matches!(v.ty, VarType::Real { .. }) {
+                        return Err(refuse(v, vr, "an unknown", "unknowns must be Real outputs"));
+                    }
+                    Ok((v.id, v.name, &v.depends_on))
+                })
                 .collect::<Result<Vec<_>, _>>()?;
             let k_ids = knowns
                 .iter()
-                .map(|&vr| check(vr, Causality::Input, "a known"))
+                .map(|&vr| {
+                    let v = lookup(&inst.vars, &inst.log, F, vr)?;
+                    match (v.causality, v.ty) {
+                        (Causality::Input, VarType::Real { .. }) => Ok((v.id, v.name, None)),
+                        (Causality::Parameter, VarType::Real { min, max, .. })
+                            if initializing && effective_initial(v) == Some(Initial::Exact) =>
+                        {
+                            Ok((v.id, v.name, Some((min, max))))
+                        }
+                        _ if initializing => {
+                            Err(refuse(v, vr, "a known", "knowns must be Real inputs or Real parameters"))
+                        }
+                        _ => Err(refuse(
+                            v,
+                            vr,
+                            "a known",
+                            "knowns must be Real inputs (Real parameters only in initialization mode)",
+                        )),
+                    }
+                })
                 .collect::<Result<Vec<_>, _>>()?;
             // In initialization mode the initial values are computed first —
             // on a copy, committed only when every partial derivative can be
             // taken, so that a refused call changes nothing.
-            let pending = !u_ids.is_empty()
-                && inst.layer.fmi_state == FmiState::InitializationMode
-                && inst.layer.dirty;
+            let pending = !u_ids.is_empty() && initializing && inst.layer.dirty;
             let mut initialized = None;
             if pending {
                 let mut trial = inst.model.clone();
@@ -1185,15 +1214,42 @@ pub unsafe fn get_directional_derivative<M: Model>(
             }
             let model = initialized.as_ref().unwrap_or(&inst.model);
             let mut result = vec![0.0; u_ids.len()];
-            for (r, &(u, u_name)) in result.iter_mut().zip(&u_ids) {
-                for (&(k, k_name), &dk) in k_ids.iter().zip(dv_k) {
-                    match model.partial_derivative(u, k) {
-                        Ok(p) => *r += p * dk,
-                        Err(ModelError(msg)) => {
-                            inst.log
-                                .error(&format!("{F}: d({u_name})/d({k_name}): {msg}"));
-                            return Err(fmi2Error);
+            for (&(k, k_name, range), &dk) in k_ids.iter().zip(dv_k) {
+                let Some((min, max)) = range else {
+                    for (r, &(u, u_name, _)) in result.iter_mut().zip(&u_ids) {
+                        match model.partial_derivative(u, k) {
+                            Ok(p) => *r += p * dk,
+                            Err(ModelError(msg)) => {
+                                inst.log
+                                    .error(&format!("{F}: d({u_name})/d({k_name}): {msg}"));
+                                return Err(fmi2Error);
+                            }
                         }
+                    }
+                    continue;
+                };
+                // A parameter: differences of the initial values, for the
+                // unknowns whose initial value depends on it.
+                let dependent: Vec<usize> = (0..u_ids.len())
+                    .filter(|&i| u_ids[i].2.contains(&k_name))
+                    .collect();
+                if dependent.is_empty() || u_ids.is_empty() {
+                    continue;
+                }
+                let of: Vec<M::Var> = dependent.iter().map(|&i| u_ids[i].0).collect();
+                match initial_parameter_column(model, k, min, max, &of) {
+                    Ok(column) => {
+                        for (&i, p) in dependent.iter().zip(column) {
+                            result[i] += p * dk;
+                        }
+                    }
+                    Err(msg) => {
+                        let names: Vec<&str> = dependent.iter().map(|&i| u_ids[i].1).collect();
+                        inst.log.error(&format!(
+                            "{F}: d({})/d({k_name}) in initialization mode: {msg}",
+                            names.join(", ")
+                        ));
+                        return Err(fmi2Error);
                     }
                 }
             }

@@ -88,6 +88,7 @@ pub use model::*;
 
 pub mod api;
 pub mod bytes;
+pub mod initial_sensitivity;
 pub mod instance;
 pub mod model_description;
 pub mod rules;

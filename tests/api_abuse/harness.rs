@@ -61,8 +61,9 @@
 //!    variable that may not be set in this state, an Integer parameter
 //!    outside its declared `min`/`max` (README "Bad input": a parameter
 //!    outside its range is `fmi2Error`), a directional derivative of an
-//!    output the model does not differentiate
-//!    ([`Subject::DERIVATIVE_OUTPUTS`]), a step size that is not finite
+//!    output the model does not differentiate with respect to an input
+//!    ([`Subject::DERIVATIVE_OUTPUTS`]) or with respect to anything but a
+//!    Real input or (in initialization mode) a Real parameter, a step size that is not finite
 //!    and positive, a communication point more than twice the tolerance
 //!    away from the FMU's time, a step ending more than twice the tolerance past the stop
 //!    time, an unknown FMU state pointer, a short serialization buffer, a
@@ -2140,8 +2141,12 @@ fn expect(call: &Call, pre: &LayerState, f: &Fmu) -> Expect {
                 || !unknowns
                     .iter()
                     .all(|&vr| is_real_with(vr, Causality::Output))
-                || !knowns.iter().all(|&vr| is_real_with(vr, Causality::Input))
-                || (!knowns.is_empty()
+                || !knowns.iter().all(|&vr| {
+                    is_real_with(vr, Causality::Input)
+                        || (state == FmiState::InitializationMode
+                            && is_real_with(vr, Causality::Parameter))
+                })
+                || (knowns.iter().any(|&vr| is_real_with(vr, Causality::Input))
                     && !unknowns
                         .iter()
                         .all(|vr| table().differentiated.contains(vr)))
