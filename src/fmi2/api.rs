@@ -1124,6 +1124,14 @@ pub unsafe fn deserialize_fmu_state<M: Model>(
 // Partial derivatives (FMI 2.0 spec, section 2.1.9)
 // ---------------------------------------------------------------------------
 
+/// What a known of [`get_directional_derivative`] is: an input, or a
+/// parameter (initialization mode only) with its declared range.
+#[derive(Clone, Copy)]
+enum Known {
+    Input,
+    Parameter { min: Option<f64>, max: Option<f64> },
+}
+
 /// `fmi2GetDirectionalDerivative` (FMI 2.0 spec, section 2.1.9):
 /// `dvUnknown[i] = Σ_j ∂unknown_i/∂known_j · dvKnown[j]`. Unknowns must be
 /// Real outputs. Knowns are Real inputs, with the partial derivatives from
@@ -1179,11 +1187,13 @@ pub unsafe fn get_directional_derivative<M: Model>(
                 .map(|&vr| {
                     let v = lookup(&inst.vars, &inst.log, F, vr)?;
                     match (v.causality, v.ty) {
-                        (Causality::Input, VarType::Real { .. }) => Ok((v.id, v.name, None)),
+                        (Causality::Input, VarType::Real { .. }) => {
+                            Ok((v.id, v.name, Known::Input))
+                        }
                         (Causality::Parameter, VarType::Real { min, max, .. })
                             if initializing && effective_initial(v) == Some(Initial::Exact) =>
                         {
-                            Ok((v.id, v.name, Some((min, max))))
+                            Ok((v.id, v.name, Known::Parameter { min, max }))
                         }
                         _ if initializing => {
                             Err(refuse(v, vr, "a known", "knowns must be Real inputs or Real parameters"))
@@ -1214,8 +1224,8 @@ pub unsafe fn get_directional_derivative<M: Model>(
             }
             let model = initialized.as_ref().unwrap_or(&inst.model);
             let mut result = vec![0.0; u_ids.len()];
-            for (&(k, k_name, range), &dk) in k_ids.iter().zip(dv_k) {
-                let Some((min, max)) = range else {
+            for (&(k, k_name, known), &dk) in k_ids.iter().zip(dv_k) {
+                let Known::Parameter { min, max } = known else {
                     for (r, &(u, u_name, _)) in result.iter_mut().zip(&u_ids) {
                         match model.partial_derivative(u, k) {
                             Ok(p) => *r += p * dk,
@@ -1233,7 +1243,7 @@ pub unsafe fn get_directional_derivative<M: Model>(
                 let dependent: Vec<usize> = (0..u_ids.len())
                     .filter(|&i| u_ids[i].2.contains(&k_name))
                     .collect();
-                if dependent.is_empty() || u_ids.is_empty() {
+                if dependent.is_empty() {
                     continue;
                 }
                 let of: Vec<M::Var> = dependent.iter().map(|&i| u_ids[i].0).collect();

@@ -343,6 +343,24 @@ const OUTPUT_DIRECTION_STEP: f64 = 1e-6;
 /// ∂(output)/∂(length, command) of every output ([`Output`] order).
 type OutputJacobian = [[f64; 2]; N_OUT];
 
+/// An [`OutputJacobian`] from differences: the length column
+/// (outputs longer − shorter) / span, the command column
+/// (outputs more − less) / span · `da_du` (the level's derivative with
+/// respect to the command where the differences were taken in the level).
+fn difference_columns(
+    length: (&[f64; N_OUT], &[f64; N_OUT], f64),
+    command: (&[f64; N_OUT], &[f64; N_OUT], f64),
+    da_du: f64,
+) -> OutputJacobian {
+    let ((longer, shorter, dl), (more, less, du)) = (length, command);
+    std::array::from_fn(|o| {
+        [
+            (longer[o] - shorter[o]) / dl,
+            (more[o] - less[o]) / du * da_du,
+        ]
+    })
+}
+
 /// The full `HillMuscleFE` (the scene `fmu_build/scenes/hill_muscle_fe.toml`).
 pub type HillFE = HillFEModel<crate::scene::shipped::HillMuscleFE>;
 
@@ -557,14 +575,11 @@ impl<S: Scene> HillFEModel<S> {
             (u + STEP_MAP_DIFFERENCE).min(1.0),
         );
         let (more, less) = (outputs(length, hi)?, outputs(length, lo)?);
-        let mut jacobian = [[0.0; 2]; N_OUT];
-        for (o, row) in jacobian.iter_mut().enumerate() {
-            *row = [
-                (longer[o] - shorter[o]) / (2.0 * dl),
-                (more[o] - less[o]) / (hi - lo),
-            ];
-        }
-        Ok(jacobian)
+        Ok(difference_columns(
+            (&longer, &shorter, 2.0 * dl),
+            (&more, &less, hi - lo),
+            1.0,
+        ))
     }
 
     /// ∂(output)/∂(length, command) of the last step's map for every
@@ -611,14 +626,11 @@ impl<S: Scene> HillFEModel<S> {
                     OUTPUT_DIRECTION_STEP.min(a),
                 );
                 let (more, less) = (at(&dx_da, up, 0.0, up)?, at(&dx_da, -down, 0.0, -down)?);
-                let mut jacobian = [[0.0; 2]; N_OUT];
-                for (o, row) in jacobian.iter_mut().enumerate() {
-                    *row = [
-                        (longer[o] - shorter[o]) / (2.0 * el),
-                        (more[o] - less[o]) / (up + down) * last.da_du,
-                    ];
-                }
-                Ok(jacobian)
+                Ok(difference_columns(
+                    (&longer, &shorter, 2.0 * el),
+                    (&more, &less, up + down),
+                    last.da_du,
+                ))
             })
             .clone()
             .map_err(ModelError)

@@ -4,7 +4,7 @@ FMI 2.0 sections 2.1.9 and 2.2.8: in Initialization Mode the unknowns are those
 of <InitialUnknowns> and the knowns the variables their dependencies may name:
 the inputs and the variables with initial = "exact", i.e. the parameters. The
 FMU differentiates its initialization with respect to a Real parameter
-(differences at 1e-4 relative, Richardson-combined; src/fmi2/initial_sensitivity.rs).
+(differences at 1e-3 relative, Richardson-combined; src/fmi2/initial_sensitivity.rs).
 
 For every shipped FMU (each scene) and every Real parameter, in initialization
 mode at a stretched, half-activated initial state:
@@ -80,8 +80,7 @@ class Fmu:
                        if v.causality == "parameter" and v.type == "Real"]
         self.deps = {u.variable.name: {d.name for d in (u.dependencies or [])}
                      for u in self.md.initialUnknowns}
-        self.kind = "fe" if "volume_ratio_min" in self.var or "n_axial" in self.var \
-            or self.md.modelName.endswith("FE") else "1d"
+        self.kind = "fe" if fmu_id.endswith("FE") else "1d"
         self.setup = {}
         if "initial_activation" in self.var and fmu_id not in FIXED_MESH_FE:
             self.setup["initial_activation"] = 0.5
@@ -94,13 +93,13 @@ class Fmu:
         if "activation" in self.var:
             self.inputs["activation"] = 0.5
 
-    def initializing(self, overrides=None, name="p"):
+    def initializing(self, overrides=None):
         """An instance in initialization mode with the setup, `overrides` and
         the inputs set."""
         from fmpy.fmi2 import FMU2Slave
 
         s = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
-                      modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
+                      modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=self.id)
         s.instantiate()
         s.setupExperiment(startTime=0.0)
         s.enterInitializationMode()
@@ -171,7 +170,7 @@ def scales(fmu, y):
     largest stress, ...), at least 1 for dimensionless ones."""
     unit = [v.declaredType.unit if v.declaredType else v.unit for v in fmu.outputs]
     out = []
-    for j, u in enumerate(unit):
+    for u in unit:
         same = [abs(y[i]) for i in range(len(y)) if unit[i] == u]
         out.append(max(max(same), 1.0 if u in (None, "1", "") else 0.0))
     return np.array(out)
