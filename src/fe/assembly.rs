@@ -19,15 +19,30 @@
 //! kept for the reaction forces' derivatives.
 //!
 //! Solution: faer's sparse Cholesky (LLᵀ, AMD ordering) while the constrained
-//! tangent is positive definite — the usual case — and sparse LU when it is not
-//! (a falling force-length branch or compressive instability can make it
-//! indefinite). Both symbolic factorisations are computed once per mesh, the
-//! LU one only when first needed.
+//! tangent is positive definite — the usual case. When it is not (a falling
+//! force-length branch, fibre tension not yet balanced by pressure in a
+//! Newton iterate, compressive instability), the symmetric indefinite
+//! factorisation LBLᵀ on the same ordering: Bunch–Kaufman pivoting (1 × 1 and
+//! 2 × 2 pivots) within the supernodes, which keeps the symmetric structure
+//! and on the default mesh costs about 1.2 times the Cholesky factorisation
+//! where sparse LU costs about 5 times (docs/fe.md, "Linear solver"). Pivoting confined to a supernode is not guaranteed stable, so
+//! an LBLᵀ factorisation is accepted only when it solves a probe system to a
+//! backward error of at most [`MAX_BACKWARD_ERROR`]; otherwise sparse LU with
+//! partial pivoting. Which factorisation a matrix gets depends on the matrix
+//! alone (a state restored elsewhere refactorises to the same bits). The
+//! symbolic factorisations are computed once per mesh, the LBLᵀ and LU ones
+//! when first needed.
 
 use std::sync::{Arc, OnceLock};
 
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, IntranodeLbltRef, SymbolicCholesky,
+    SymmetricOrdering,
+};
 use faer::sparse::linalg::solvers::{Llt, Lu, SymbolicLlt, SymbolicLu};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{MatMut, Side};
 use nalgebra::{Matrix3, SMatrix};
@@ -55,10 +70,19 @@ pub struct Pattern {
     bc_diagonal: Vec<usize>,
     /// Whether each dof is prescribed.
     pub prescribed: Vec<bool>,
-    /// Symbolic Cholesky (computed with the pattern) and LU (on first use).
+    /// Symbolic Cholesky (computed with the pattern), supernodal LBLᵀ and
+    /// LU (on first use).
     llt: SymbolicLlt<usize>,
+    lblt: OnceLock<Result<Arc<SymbolicCholesky<usize>>, String>>,
     lu: OnceLock<Result<SymbolicLu<usize>, String>>,
 }
+
+/// Largest backward error ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) of the probe solve
+/// at which an LBLᵀ factorisation is accepted (module docs). A backward-stable
+/// factorisation gives a few ulps (at most 8.6e-16 on the default mesh's
+/// indefinite tangents during an activated initialization); a pivot growth
+/// that spoils the solve shows as orders of magnitude more.
+pub const MAX_BACKWARD_ERROR: f64 = 1e-12;
 
 impl Pattern {
     /// The pattern of a mesh with `n_nodes` nodes and tetrahedra `tets`, with
@@ -165,6 +189,7 @@ impl Pattern {
             bc_diagonal,
             prescribed,
             llt,
+            lblt: OnceLock::new(),
             lu: OnceLock::new(),
         })
     }
@@ -268,8 +293,50 @@ impl Pattern {
     }
 
     /// Factorise the constrained tangent built from the full `values`
-    /// (prescribed rows and columns replaced by the identity).
+    /// (prescribed rows and columns replaced by the identity): Cholesky, else
+    /// LBLᵀ when it passes the backward-error test, else LU (module docs);
+    /// `Err` when LU's probe solve is not finite (a singular tangent).
     pub fn factorize(&self, values: &[f64]) -> Result<Factor, String> {
+        let constrained = self.constrained(values)?;
+        let mat = SparseColMatRef::new(self.symbolic_ref(), &constrained);
+        if let Ok(llt) = Llt::try_new_with_symbolic(self.llt.clone(), mat, Side::Lower) {
+            return Ok(Factor::Cholesky(Arc::new(llt)));
+        }
+        let lblt = Factor::BunchKaufman(Arc::new(self.factorize_lblt(&constrained)?));
+        if self.backward_error(&constrained, &lblt) <= MAX_BACKWARD_ERROR {
+            return Ok(lblt);
+        }
+        let lu = self.factorize_lu(&constrained)?;
+        if self.backward_error(&constrained, &lu).is_nan() {
+            return Err("the tangent is singular (LU: a zero pivot)".into());
+        }
+        Ok(lu)
+    }
+
+    /// The factorisation `kind` of the constrained tangent, whatever the
+    /// matrix (no backward-error test), with the probe solve's backward
+    /// error: for tests and benchmarks of [`Self::factorize`]'s choice.
+    pub fn factorize_as(&self, values: &[f64], kind: FactorKind) -> Result<(Factor, f64), String> {
+        let constrained = self.constrained(values)?;
+        let factor = match kind {
+            FactorKind::Cholesky => {
+                let mat = SparseColMatRef::new(self.symbolic_ref(), &constrained);
+                Llt::try_new_with_symbolic(self.llt.clone(), mat, Side::Lower)
+                    .map(|f| Factor::Cholesky(Arc::new(f)))
+                    .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?
+            }
+            FactorKind::BunchKaufman => {
+                Factor::BunchKaufman(Arc::new(self.factorize_lblt(&constrained)?))
+            }
+            FactorKind::Lu => self.factorize_lu(&constrained)?,
+        };
+        let error = self.backward_error(&constrained, &factor);
+        Ok((factor, error))
+    }
+
+    /// The constrained values: prescribed rows and columns zeroed, their
+    /// diagonal 1; `Err` on a non-finite entry.
+    fn constrained(&self, values: &[f64]) -> Result<Vec<f64>, String> {
         let mut constrained = values.to_vec();
         for &s in &self.bc_off_diagonal {
             constrained[s] = 0.0;
@@ -280,10 +347,72 @@ impl Pattern {
         if constrained.iter().any(|v| !v.is_finite()) {
             return Err("the tangent has a non-finite entry".into());
         }
-        let mat = SparseColMatRef::new(self.symbolic_ref(), &constrained);
-        if let Ok(llt) = Llt::try_new_with_symbolic(self.llt.clone(), mat, Side::Lower) {
-            return Ok(Factor::Cholesky(Arc::new(llt)));
+        Ok(constrained)
+    }
+
+    /// The supernodal LBLᵀ factorisation of the constrained values, with
+    /// Bunch–Kaufman pivoting within the supernodes (AMD ordering; the
+    /// supernodal structure is forced: faer's simplicial variant does not
+    /// pivot).
+    fn factorize_lblt(&self, constrained: &[f64]) -> Result<BunchKaufman, String> {
+        let symbolic = self
+            .lblt
+            .get_or_init(|| {
+                let params = CholeskySymbolicParams {
+                    supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+                    ..Default::default()
+                };
+                factorize_symbolic_cholesky(
+                    self.symbolic_ref(),
+                    Side::Lower,
+                    SymmetricOrdering::Amd,
+                    params,
+                )
+                .map(Arc::new)
+                .map_err(|e| format!("symbolic LBLT factorisation failed: {e:?}"))
+            })
+            .clone()?;
+        let n = symbolic.nrows();
+        let mut values = vec![0.0; symbolic.len_val()];
+        let mut subdiagonal = vec![0.0; n];
+        let (mut forward, mut inverse) = (vec![0usize; n], vec![0usize; n]);
+        let par = faer::get_global_parallelism();
+        let mut scratch = MemBuffer::try_new(
+            symbolic.factorize_numeric_intranode_lblt_scratch::<f64>(par, Default::default()),
+        )
+        .map_err(|e| format!("LBLT factorisation: {e:?}"))?;
+        symbolic.factorize_numeric_intranode_lblt(
+            &mut values,
+            &mut subdiagonal,
+            &mut forward,
+            &mut inverse,
+            SparseColMatRef::new(self.symbolic_ref(), constrained),
+            Side::Lower,
+            par,
+            MemStack::new(&mut scratch),
+            Default::default(),
+        );
+        // The pivoting permutation as faer returns it; checked here so that
+        // the solves can rely on it.
+        let permutation = forward
+            .iter()
+            .enumerate()
+            .all(|(i, &f)| inverse.get(f) == Some(&i));
+        if !permutation {
+            return Err("LBLT factorisation: invalid pivoting permutation".into());
         }
+        Ok(BunchKaufman {
+            symbolic,
+            values,
+            subdiagonal,
+            forward,
+            inverse,
+        })
+    }
+
+    /// The sparse LU factorisation (partial pivoting) of the constrained
+    /// values.
+    fn factorize_lu(&self, constrained: &[f64]) -> Result<Factor, String> {
         let symbolic = self
             .lu
             .get_or_init(|| {
@@ -291,9 +420,76 @@ impl Pattern {
                     .map_err(|e| format!("symbolic LU factorisation failed: {e:?}"))
             })
             .clone()?;
+        let mat = SparseColMatRef::new(self.symbolic_ref(), constrained);
         let lu = Lu::try_new_with_symbolic(symbolic, mat)
             .map_err(|e| format!("the tangent is singular (LU: {e:?})"))?;
         Ok(Factor::Lu(Arc::new(lu)))
+    }
+
+    /// Backward error ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) of `factor`'s solution x
+    /// of K x = b, K the `constrained` matrix and b the fixed vector
+    /// b_i = 1 + (i mod 7)/7 (module docs); NaN when the solve is not finite
+    /// (a zero pivot).
+    fn backward_error(&self, constrained: &[f64], factor: &Factor) -> f64 {
+        let n = 3 * self.n_nodes;
+        let b: Vec<f64> = (0..n).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+        let mut x = b.clone();
+        factor.solve_in_place(&mut x);
+        let mut kx = vec![0.0; n];
+        self.multiply(constrained, &x, &mut kx);
+        // Max norm, NaN when any entry is (f64::max would skip it).
+        let norm = |v: &mut dyn Iterator<Item = f64>| {
+            v.fold(0.0f64, |m, a| {
+                if m.is_nan() || a.is_nan() {
+                    f64::NAN
+                } else {
+                    m.max(a.abs())
+                }
+            })
+        };
+        let col_ptr = self.symbolic.col_ptr();
+        // ‖K‖∞ as the largest column sum (K symmetric).
+        let k_norm = norm(&mut (0..n).map(|c| {
+            constrained[col_ptr[c]..col_ptr[c + 1]]
+                .iter()
+                .map(|v| v.abs())
+                .sum::<f64>()
+        }));
+        let residual = norm(&mut kx.iter().zip(&b).map(|(a, c)| a - c));
+        let scale = k_norm * norm(&mut x.iter().copied()) + norm(&mut b.iter().copied());
+        if residual.is_finite() && scale.is_finite() {
+            residual / scale
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// A supernodal LBLᵀ factorisation ([`Pattern::factorize`]): the factor's
+/// values, the 2 × 2 pivots' subdiagonal and the pivoting permutation, with
+/// the symbolic structure they belong to.
+pub struct BunchKaufman {
+    symbolic: Arc<SymbolicCholesky<usize>>,
+    values: Vec<f64>,
+    subdiagonal: Vec<f64>,
+    forward: Vec<usize>,
+    inverse: Vec<usize>,
+}
+
+impl BunchKaufman {
+    fn solve_in_place(&self, b: &mut [f64]) {
+        let n = b.len();
+        let par = faer::get_global_parallelism();
+        let permutation = faer::perm::PermRef::new_checked(&self.forward, &self.inverse, n);
+        let factor =
+            IntranodeLbltRef::new(&self.symbolic, &self.values, &self.subdiagonal, permutation);
+        let mut scratch = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, par));
+        factor.solve_in_place_with_conj(
+            faer::Conj::No,
+            MatMut::from_column_major_slice_mut(b, n, 1),
+            par,
+            MemStack::new(&mut scratch),
+        );
     }
 }
 
@@ -301,7 +497,16 @@ impl Pattern {
 #[derive(Clone)]
 pub enum Factor {
     Cholesky(Arc<Llt<usize, f64>>),
+    BunchKaufman(Arc<BunchKaufman>),
     Lu(Arc<Lu<usize, f64>>),
+}
+
+/// Which factorisation [`Pattern::factorize`] chose.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FactorKind {
+    Cholesky,
+    BunchKaufman,
+    Lu,
 }
 
 impl Factor {
@@ -309,17 +514,21 @@ impl Factor {
     /// come back unchanged, as the constrained matrix has identity rows there).
     pub fn solve_in_place(&self, b: &mut [f64]) {
         let n = b.len();
-        let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
         match self {
-            Factor::Cholesky(f) => f.solve_in_place(rhs),
-            Factor::Lu(f) => f.solve_in_place(rhs),
+            Factor::Cholesky(f) => f.solve_in_place(MatMut::from_column_major_slice_mut(b, n, 1)),
+            Factor::BunchKaufman(f) => f.solve_in_place(b),
+            Factor::Lu(f) => f.solve_in_place(MatMut::from_column_major_slice_mut(b, n, 1)),
         }
     }
 
-    /// Whether this is the Cholesky factorisation (the tangent was positive
+    /// Which factorisation this is (Cholesky: the tangent was positive
     /// definite).
-    pub fn is_cholesky(&self) -> bool {
-        matches!(self, Factor::Cholesky(_))
+    pub fn kind(&self) -> FactorKind {
+        match self {
+            Factor::Cholesky(_) => FactorKind::Cholesky,
+            Factor::BunchKaufman(_) => FactorKind::BunchKaufman,
+            Factor::Lu(_) => FactorKind::Lu,
+        }
     }
 }
 
@@ -409,43 +618,99 @@ mod tests {
             .all(|(a, b)| (a - b).abs() < 1e-13));
     }
 
-    /// A symmetric positive definite matrix on the pattern: the Cholesky path;
-    /// an indefinite one: the LU path; both solve to round-off, with the
-    /// prescribed dofs decoupled.
-    #[test]
-    fn cholesky_and_lu_paths_solve_the_constrained_system() {
-        let tets = two_tets();
+    /// The two-tet pattern with dofs 0 and 14 prescribed.
+    fn constrained_two_tets() -> (Pattern, Vec<bool>) {
         let mut prescribed = vec![false; 15];
         prescribed[0] = true;
         prescribed[14] = true;
-        let p = Pattern::new(5, &tets, prescribed.clone()).unwrap();
-        for (shift, expect_cholesky) in [(20.0, true), (-0.3, false)] {
-            let mut values = p.zeros();
-            for (e, tet) in tets.iter().enumerate() {
-                let r = pseudo_random(144, 11 + e as u64);
-                let a = SMatrix::<f64, 12, 12>::from_column_slice(&r);
-                let k = a * a.transpose() + SMatrix::<f64, 12, 12>::identity() * shift;
-                p.add_element(&mut values, e, tet, &k);
-            }
-            let f = p.factorize(&values).unwrap();
-            assert_eq!(f.is_cholesky(), expect_cholesky, "shift {shift}");
-            let mut k = dense(&p, &values);
-            for d in 0..15 {
-                if prescribed[d] {
-                    for o in 0..15 {
-                        k[(d, o)] = 0.0;
-                        k[(o, d)] = 0.0;
-                    }
-                    k[(d, d)] = 1.0;
-                }
-            }
-            let b = pseudo_random(15, 5);
-            let mut x = b.clone();
-            f.solve_in_place(&mut x);
-            let r = &k * nalgebra::DVector::from_vec(x.clone())
-                - nalgebra::DVector::from_vec(b.clone());
-            assert!(r.amax() < 1e-10, "shift {shift}: residual {}", r.amax());
-            assert_eq!(x[0], b[0]);
+        (
+            Pattern::new(5, &two_tets(), prescribed.clone()).unwrap(),
+            prescribed,
+        )
+    }
+
+    /// Values on the pattern: per element A Aᵀ + shift I (A pseudo-random).
+    fn shifted_gram(p: &Pattern, shift: f64) -> Vec<f64> {
+        let mut values = p.zeros();
+        for (e, tet) in two_tets().iter().enumerate() {
+            let r = pseudo_random(144, 11 + e as u64);
+            let a = SMatrix::<f64, 12, 12>::from_column_slice(&r);
+            let k = a * a.transpose() + SMatrix::<f64, 12, 12>::identity() * shift;
+            p.add_element(&mut values, e, tet, &k);
         }
+        values
+    }
+
+    /// The largest residual |K x − b| of `f`'s solve of the constrained
+    /// dense system, and whether prescribed entry 0 came back unchanged.
+    fn dense_residual(p: &Pattern, prescribed: &[bool], values: &[f64], f: &Factor) -> (f64, bool) {
+        let mut k = dense(p, values);
+        for d in 0..15 {
+            if prescribed[d] {
+                for o in 0..15 {
+                    k[(d, o)] = 0.0;
+                    k[(o, d)] = 0.0;
+                }
+                k[(d, d)] = 1.0;
+            }
+        }
+        let b = pseudo_random(15, 5);
+        let mut x = b.clone();
+        f.solve_in_place(&mut x);
+        let r =
+            &k * nalgebra::DVector::from_vec(x.clone()) - nalgebra::DVector::from_vec(b.clone());
+        (r.amax(), x[0] == b[0])
+    }
+
+    /// A symmetric positive definite matrix on the pattern: the Cholesky
+    /// path; an indefinite one: the LBLᵀ path (Cholesky refuses it, its
+    /// probe backward error is at round-off); LU forced on the same matrix.
+    /// Each solves to round-off, with the prescribed dofs decoupled.
+    #[test]
+    fn cholesky_lblt_and_lu_paths_solve_the_constrained_system() {
+        let (p, prescribed) = constrained_two_tets();
+        for (shift, expect) in [
+            (20.0, FactorKind::Cholesky),
+            (-0.3, FactorKind::BunchKaufman),
+        ] {
+            let values = shifted_gram(&p, shift);
+            let f = p.factorize(&values).unwrap();
+            assert_eq!(f.kind(), expect, "shift {shift}");
+            let (r, kept) = dense_residual(&p, &prescribed, &values, &f);
+            assert!(r < 1e-10 && kept, "shift {shift}: residual {r}");
+        }
+        let values = shifted_gram(&p, -0.3);
+        assert!(p.factorize_as(&values, FactorKind::Cholesky).is_err());
+        let (lu, error) = p.factorize_as(&values, FactorKind::Lu).unwrap();
+        assert_eq!(lu.kind(), FactorKind::Lu);
+        assert!(error < 1e-14, "LU probe backward error {error:e}");
+        let (r, kept) = dense_residual(&p, &prescribed, &values, &lu);
+        assert!(r < 1e-10 && kept, "LU: residual {r}");
+        let (_, error) = p.factorize_as(&values, FactorKind::BunchKaufman).unwrap();
+        assert!(error < 1e-14, "LBLT probe backward error {error:e}");
+    }
+
+    /// The backward-error test can fail: a factorisation of another matrix
+    /// does not pass it for this one, and a singular matrix (zero on the
+    /// free dofs) gets no factorisation at all (its probe solves are not
+    /// finite: not accepted as LBLᵀ, and refused after LU).
+    #[test]
+    fn the_backward_error_test_rejects_what_does_not_solve_the_matrix() {
+        let (p, _) = constrained_two_tets();
+        let indefinite = shifted_gram(&p, -0.3);
+        let (other, _) = p
+            .factorize_as(&shifted_gram(&p, -0.1), FactorKind::BunchKaufman)
+            .unwrap();
+        let constrained = p.constrained(&indefinite).unwrap();
+        let error = p.backward_error(&constrained, &other);
+        assert!(error > 1e3 * MAX_BACKWARD_ERROR, "{error:e}");
+        let singular = p.zeros();
+        let (_, error) = p.factorize_as(&singular, FactorKind::BunchKaufman).unwrap();
+        assert!(error.is_nan(), "{error:e}");
+        let e = p
+            .factorize(&singular)
+            .err()
+            .expect("a singular tangent is refused");
+        assert!(e.contains("singular"), "{e}");
     }
 }
