@@ -1,0 +1,113 @@
+//! The activated initialization of the FE muscle and the factorisations of
+//! an indefinite tangent (docs/fe.md, "Linear solver"):
+//! `cargo bench --bench fe_init [-- --runs N]`.
+//!
+//! Part 1, on the default mesh (16 × 3 graded): the tangent an activated
+//! initialization meets first — the rate-free (isometric) tangent at the
+//! passive equilibrium at L0 with the activation level raised to 0.5, fibre
+//! tension not yet balanced by pressure: indefinite — factorised by each
+//! method of [`hill_muscle::fe::assembly::Pattern::factorize_as`]:
+//! Cholesky (which fails on it, after part of the work), supernodal LBLᵀ
+//! (Bunch–Kaufman within supernodes) and sparse LU; and, for scale, the
+//! positive definite tangent of a 1 ms step there. Median of 21
+//! factorisations each, with the probe solve's backward error, and which
+//! method `factorize` chooses.
+//!
+//! Part 2: [`Muscle::isometric`] (the FMU's initialization) on the default
+//! mesh at rest length with levels 0.5 and 1 and at 1.1 L0 with 0.5: wall
+//! time (median and range of `--runs`, default 3) and the force.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use hill_muscle::fe::assembly::FactorKind;
+use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_AXIAL_GRADING};
+use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
+use hill_muscle::law::{FibreHistory, FibreRate, Params};
+use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let runs = args
+        .iter()
+        .position(|a| a == "--runs")
+        .map_or(3, |i| args[i + 1].parse().expect("--runs N"));
+    let p = Params::default();
+    let d = Arc::new(
+        Discretization::fusiform_graded(
+            L0,
+            MEAN_AREA,
+            LUMPED,
+            LUMPED_AXIAL_GRADING,
+            FibreLayout::Axial,
+            Ends::Clamped,
+        )
+        .unwrap(),
+    );
+    let (rest, _) = Muscle::isometric(d.clone(), &p, L0, 0.0).unwrap();
+    let start = vec![FibreHistory::REST; d.n_elements()];
+    println!(
+        "Default mesh {}×{} graded {LUMPED_AXIAL_GRADING} ({} tetrahedra, {} dofs), passive equilibrium at L0, level 0.5; median of 21",
+        LUMPED.n_axial,
+        LUMPED.n_radial,
+        d.n_elements(),
+        3 * d.n_nodes()
+    );
+    println!("| tangent | factorize chooses | method | ms | probe backward error |");
+    println!("|---|---|---|---|---|");
+    for (name, rate) in [
+        ("rate-free (isometric)", FibreRate::Isometric),
+        ("1 ms step", FibreRate::Step { h: 1e-3 }),
+    ] {
+        let ev = d.evaluate(&p, &rest.x, 0.5, &start, rate, true).unwrap();
+        let values = ev.tangent.unwrap();
+        let chosen = d.pattern.factorize(&values).map(|f| f.kind());
+        for kind in [
+            FactorKind::Cholesky,
+            FactorKind::BunchKaufman,
+            FactorKind::Lu,
+        ] {
+            let mut times = Vec::new();
+            let mut outcome = String::new();
+            for _ in 0..21 {
+                let t = Instant::now();
+                let r = d.pattern.factorize_as(&values, kind);
+                times.push(t.elapsed().as_secs_f64());
+                outcome = match r {
+                    Ok((_, e)) => format!("{e:.1e}"),
+                    Err(_) => "fails (not positive definite)".into(),
+                };
+            }
+            println!(
+                "| {name} | {chosen:?} | {kind:?} | {:.2} | {outcome} |",
+                median(times) * 1e3
+            );
+        }
+    }
+    println!();
+    println!("Muscle::isometric on the default mesh, {runs} runs");
+    println!("| L/L0 | level | median s | range s | force N |");
+    println!("|---|---|---|---|---|");
+    for (stretch, level) in [(1.0, 0.5), (1.0, 1.0), (1.1, 0.5)] {
+        let mut times = Vec::new();
+        let mut force = 0.0;
+        for _ in 0..runs {
+            let t = Instant::now();
+            let (_, s) = Muscle::isometric(d.clone(), &p, stretch * L0, level).unwrap();
+            times.push(t.elapsed().as_secs_f64());
+            force = d.reaction(&s.evaluation.forces);
+        }
+        let (lo, hi) = times
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+        println!(
+            "| {stretch} | {level} | {:.2} | {lo:.2}–{hi:.2} | {force:.9} |",
+            median(times)
+        );
+    }
+}
