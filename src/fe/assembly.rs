@@ -24,9 +24,11 @@
 //! Newton iterate, compressive instability), the symmetric indefinite
 //! factorisation LBLᵀ on the same ordering: Bunch–Kaufman pivoting (1 × 1 and
 //! 2 × 2 pivots) within the supernodes, which keeps the symmetric structure
-//! and on the default mesh costs about 1.2 times the Cholesky factorisation
-//! where sparse LU costs about 5 times (docs/fe.md, "Linear solver"). Pivoting confined to a supernode is not guaranteed stable, so
-//! an LBLᵀ factorisation is accepted only when it solves a probe system to a
+//! and on the default mesh costs 1.1–1.2 times a Cholesky factorisation
+//! where sparse LU costs 4–5 times (BENCHMARKS.md, `cargo bench --bench
+//! fe_init`).
+//! Pivoting confined to a supernode is not guaranteed stable, so an LBLᵀ
+//! factorisation is accepted only when it solves a probe system to a
 //! backward error of at most [`MAX_BACKWARD_ERROR`]; otherwise sparse LU with
 //! partial pivoting. Which factorisation a matrix gets depends on the matrix
 //! alone (a state restored elsewhere refactorises to the same bits). The
@@ -37,6 +39,7 @@ use std::sync::{Arc, OnceLock};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::solvers::Solve;
+use faer::perm::Perm;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, IntranodeLbltRef, SymbolicCholesky,
     SymmetricOrdering,
@@ -79,9 +82,9 @@ pub struct Pattern {
 
 /// Largest backward error ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) of the probe solve
 /// at which an LBLᵀ factorisation is accepted (module docs). A backward-stable
-/// factorisation gives a few ulps (at most 8.6e-16 on the default mesh's
-/// indefinite tangents during an activated initialization); a pivot growth
-/// that spoils the solve shows as orders of magnitude more.
+/// factorisation gives a few ulps or less (4.5e-18 on the default mesh's
+/// indefinite tangent of `cargo bench --bench fe_init`); a pivot growth that
+/// spoils the solve shows as orders of magnitude more.
 pub const MAX_BACKWARD_ERROR: f64 = 1e-12;
 
 impl Pattern {
@@ -298,9 +301,8 @@ impl Pattern {
     /// `Err` when LU's probe solve is not finite (a singular tangent).
     pub fn factorize(&self, values: &[f64]) -> Result<Factor, String> {
         let constrained = self.constrained(values)?;
-        let mat = SparseColMatRef::new(self.symbolic_ref(), &constrained);
-        if let Ok(llt) = Llt::try_new_with_symbolic(self.llt.clone(), mat, Side::Lower) {
-            return Ok(Factor::Cholesky(Arc::new(llt)));
+        if let Ok(llt) = self.factorize_llt(&constrained) {
+            return Ok(llt);
         }
         let lblt = Factor::BunchKaufman(Arc::new(self.factorize_lblt(&constrained)?));
         if self.backward_error(&constrained, &lblt) <= MAX_BACKWARD_ERROR {
@@ -319,12 +321,7 @@ impl Pattern {
     pub fn factorize_as(&self, values: &[f64], kind: FactorKind) -> Result<(Factor, f64), String> {
         let constrained = self.constrained(values)?;
         let factor = match kind {
-            FactorKind::Cholesky => {
-                let mat = SparseColMatRef::new(self.symbolic_ref(), &constrained);
-                Llt::try_new_with_symbolic(self.llt.clone(), mat, Side::Lower)
-                    .map(|f| Factor::Cholesky(Arc::new(f)))
-                    .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?
-            }
+            FactorKind::Cholesky => self.factorize_llt(&constrained)?,
             FactorKind::BunchKaufman => {
                 Factor::BunchKaufman(Arc::new(self.factorize_lblt(&constrained)?))
             }
@@ -348,6 +345,15 @@ impl Pattern {
             return Err("the tangent has a non-finite entry".into());
         }
         Ok(constrained)
+    }
+
+    /// The Cholesky factorisation of the constrained values; `Err` when they
+    /// are not (numerically) positive definite.
+    fn factorize_llt(&self, constrained: &[f64]) -> Result<Factor, String> {
+        let mat = SparseColMatRef::new(self.symbolic_ref(), constrained);
+        Llt::try_new_with_symbolic(self.llt.clone(), mat, Side::Lower)
+            .map(|f| Factor::Cholesky(Arc::new(f)))
+            .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))
     }
 
     /// The supernodal LBLᵀ factorisation of the constrained values, with
@@ -392,8 +398,9 @@ impl Pattern {
             MemStack::new(&mut scratch),
             Default::default(),
         );
-        // The pivoting permutation as faer returns it; checked here so that
-        // the solves can rely on it.
+        // The pivoting permutation as faer returns it, checked here (an
+        // error, not faer's panic) and kept as faer's permutation for the
+        // solves.
         let permutation = forward
             .iter()
             .enumerate()
@@ -405,8 +412,7 @@ impl Pattern {
             symbolic,
             values,
             subdiagonal,
-            forward,
-            inverse,
+            permutation: Perm::new_checked(forward.into(), inverse.into(), n),
         })
     }
 
@@ -472,17 +478,19 @@ pub struct BunchKaufman {
     symbolic: Arc<SymbolicCholesky<usize>>,
     values: Vec<f64>,
     subdiagonal: Vec<f64>,
-    forward: Vec<usize>,
-    inverse: Vec<usize>,
+    permutation: Perm<usize>,
 }
 
 impl BunchKaufman {
     fn solve_in_place(&self, b: &mut [f64]) {
         let n = b.len();
         let par = faer::get_global_parallelism();
-        let permutation = faer::perm::PermRef::new_checked(&self.forward, &self.inverse, n);
-        let factor =
-            IntranodeLbltRef::new(&self.symbolic, &self.values, &self.subdiagonal, permutation);
+        let factor = IntranodeLbltRef::new(
+            &self.symbolic,
+            &self.values,
+            &self.subdiagonal,
+            self.permutation.as_ref(),
+        );
         let mut scratch = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, par));
         factor.solve_in_place_with_conj(
             faer::Conj::No,
