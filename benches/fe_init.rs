@@ -15,7 +15,8 @@
 //!
 //! Part 2: [`Muscle::isometric`] (the FMU's initialization) on the default
 //! mesh at rest length with levels 0.5 and 1 and at 1.1 L0 with 0.5: wall
-//! time (median and range of `--runs`, default 3) and the force.
+//! time (median and range of `--runs`, default 3), the force, and which
+//! factorisation the equilibrium's tangent gets.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -26,10 +27,9 @@ use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
 use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
+#[path = "common/cabi.rs"]
+mod cabi;
+use cabi::median;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -91,22 +91,25 @@ fn main() {
     }
     println!();
     println!("Muscle::isometric on the default mesh, {runs} runs");
-    println!("| L/L0 | level | median s | range s | force N |");
-    println!("|---|---|---|---|---|");
+    println!("| L/L0 | level | median s | range s | force N | tangent at the equilibrium |");
+    println!("|---|---|---|---|---|---|");
     for (stretch, level) in [(1.0, 0.5), (1.0, 1.0), (1.1, 0.5)] {
         let mut times = Vec::new();
         let mut force = 0.0;
+        let mut kind = None;
         for _ in 0..runs {
             let t = Instant::now();
-            let (_, s) = Muscle::isometric(d.clone(), &p, stretch * L0, level).unwrap();
+            let (m, s) = Muscle::isometric(d.clone(), &p, stretch * L0, level).unwrap();
             times.push(t.elapsed().as_secs_f64());
             force = d.reaction(&s.evaluation.forces);
+            let tangent = m.tangent.as_ref().map(|c| c.tangent(&d, &p));
+            kind = tangent.map(|t| t.map(|t| t.factor.kind()));
         }
         let (lo, hi) = times
             .iter()
             .fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
         println!(
-            "| {stretch} | {level} | {:.2} | {lo:.2}–{hi:.2} | {force:.9} |",
+            "| {stretch} | {level} | {:.2} | {lo:.2}–{hi:.2} | {force:.9} | {kind:?} |",
             median(times)
         );
     }
