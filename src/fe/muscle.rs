@@ -68,7 +68,7 @@ pub const MAX_SUBSTEPS: usize = 64;
 const CONTINUED_SUBSTEPS: usize = 2;
 /// Steps of 1 ms over which [`Muscle::isometric`]'s relaxation raises the
 /// activation level before holding it.
-const RELAX_RAMP: usize = 8;
+pub(crate) const RELAX_RAMP: usize = 8;
 /// Increments of the isometric activation ramp at initialization before it
 /// turns to relaxation ([`Muscle::isometric`]).
 const ACTIVATION_RAMP: usize = 4;
@@ -816,7 +816,10 @@ impl Muscle {
     /// passive equilibrium at `length` (`Self::isometric_ramp` from rest),
     /// then, for an active muscle, the level raised to `activation` by the
     /// same ramp at that length; when that fails, by relaxation
-    /// (`Self::relax_isometric`).
+    /// (`Self::relax_isometric`). The solution's counts are those of every
+    /// converged solve of the way there (the passive ramp, then the level's
+    /// ramp or the relaxation steps and the final solve; attempts that failed
+    /// and were retried in more increments or substeps are not counted).
     pub fn isometric(
         disc: Arc<Discretization>,
         p: &Params,
@@ -828,12 +831,17 @@ impl Muscle {
         if activation == 0.0 {
             return Ok((passive, s));
         }
-        match passive.isometric_ramp(p, length, 0.0, activation, ACTIVATION_RAMP) {
-            Ok(done) => Ok(done),
+        let (active, a) = match passive.isometric_ramp(p, length, 0.0, activation, ACTIVATION_RAMP)
+        {
+            Ok(done) => done,
             Err(ramp) => passive.relax_isometric(p, activation).map_err(|relax| {
                 format!("{ramp}; relaxing to it at the activation level held: {relax}")
-            }),
-        }
+            })?,
+        };
+        Ok((
+            active,
+            a.with_counts_added(s.iterations, s.factorizations, s.residuals),
+        ))
     }
 
     /// From this isometric equilibrium (at activation level `from`), the
@@ -929,11 +937,13 @@ impl Muscle {
     /// partly on the descending limb of f_λ (negative active stiffness), the
     /// rate-free isometric problem can defeat Newton's method from the
     /// passive state, while the force-velocity relation regularises the
-    /// rate-dependent one.
+    /// rate-dependent one. The counts are summed over the relaxation steps
+    /// and the final solve.
     fn relax_isometric(&self, p: &Params, activation: f64) -> Result<(Muscle, Solution), String> {
         let mut m = self.clone();
         let mut h = 1e-3;
         let mut steps = 0;
+        let (mut iterations, mut factorizations, mut residuals) = (0, 0, 0);
         // The level is raised over the first RELAX_RAMP steps (pseudo-time:
         // only the steady state counts), then held while h doubles.
         while h <= 1e6 {
@@ -945,6 +955,9 @@ impl Muscle {
             };
             let r = m.advance(p, m.length, h, &|tau| a0 + (a1 - a0) * tau / h)?;
             steps += 1;
+            iterations += r.iterations;
+            factorizations += r.factorizations;
+            residuals += r.residuals;
             let moved = r
                 .solution
                 .evaluation
@@ -976,9 +989,13 @@ impl Muscle {
             trend: Trend::default(),
             ..m
         };
-        relaxed
+        let (done, s) = relaxed
             .isometric_ramp(p, relaxed.length, activation, activation, 1)
-            .map_err(|e| format!("after {steps} relaxation steps: {e}"))
+            .map_err(|e| format!("after {steps} relaxation steps: {e}"))?;
+        Ok((
+            done,
+            s.with_counts_added(iterations, factorizations, residuals),
+        ))
     }
 
     /// Advance over a step of length `h` to muscle length `length`, the

@@ -312,6 +312,24 @@ pub struct Solution {
     pub factorizations: usize,
 }
 
+impl Solution {
+    /// This equilibrium with the work of the solves that led to it (e.g. the
+    /// earlier stages of an initialization) added to its counts.
+    pub fn with_counts_added(
+        self,
+        iterations: usize,
+        factorizations: usize,
+        residuals: usize,
+    ) -> Self {
+        Solution {
+            iterations: self.iterations + iterations,
+            factorizations: self.factorizations + factorizations,
+            residuals: self.residuals + residuals,
+            ..self
+        }
+    }
+}
+
 /// One (sub)step's problem.
 pub struct StepInput<'a> {
     /// Positions of the last equilibrium.
@@ -1184,12 +1202,24 @@ mod tests {
     /// the isometric ramp cannot reach it (fibres of the clamped specimen on
     /// the descending limb of f_λ), the relaxation does, and the result is
     /// the isometric equilibrium: the Newton correction of the rate-free
-    /// problem with a tangent formed there is within the tolerance.
+    /// problem with a tangent formed there is within the tolerance. Its
+    /// counts are the whole initialization's: the passive ramp's, at least
+    /// one iteration per relaxation step, and the final solve's.
     #[test]
     fn isometric_initialization_at_full_activation_relaxes_to_the_equilibrium() {
         let p = Params::default();
         let d = specimen(6, 1);
         let (m, s) = Muscle::isometric(d.clone(), &p, 0.05, 1.0).unwrap();
+        let (_, passive) = Muscle::isometric(d.clone(), &p, 0.05, 0.0).unwrap();
+        let ramp = crate::fe::muscle::RELAX_RAMP;
+        assert!(
+            s.iterations > passive.iterations + ramp && s.factorizations > passive.factorizations,
+            "initialization counted {} iterations, {} factorisations; the passive ramp alone {}, {}",
+            s.iterations,
+            s.factorizations,
+            passive.iterations,
+            passive.factorizations
+        );
         let r = crate::fe::muscle::Advance {
             muscle: m.clone(),
             solution: s,

@@ -26,7 +26,8 @@
 //! equilibrium, the volume average of σ_xx); `fibre_stretch`, `ce_stretch`,
 //! `see_stretch`, `active_stress` (σ_s) volume averages; `passive_stress` =
 //! stress − active_stress; `volume_ratio_min`/`max` over the elements' J;
-//! `max_fibre_stretch`; `newton_iterations` of the last step (all substeps).
+//! `max_fibre_stretch`; `newton_iterations` of the last step (all substeps;
+//! after initialization, of its converged stages).
 
 use std::sync::{Arc, OnceLock};
 
@@ -1553,7 +1554,7 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
         variability: Variability::Discrete,
         ..output(
             "newton_iterations",
-            "Newton iterations of the last step (all substeps, including the predictor)",
+            "Newton iterations of the last step (all substeps, including the predictor), after initialization of the whole initialization",
             VarType::Integer {
                 start: None,
                 min: None,
