@@ -2406,6 +2406,32 @@ fn directional_derivative_is_the_linear_combination() {
     assert!(f.has_log(fmi2Error, "unknown value reference 77"));
 }
 
+/// A seed `dvKnown` that is NaN or infinite is refused with `fmi2Error`
+/// naming its index and value; nothing is written to `dvUnknown`, the
+/// instance is unchanged, and a finite seed then gives the derivative.
+#[test]
+fn non_finite_seeds_are_refused() {
+    let f = Fmu::<Lag>::running();
+    f.ok(f.step(0.0, 0.25));
+    let before = f.state_bytes();
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let (s, d) = dir_deriv(&f, &[Y, Z], &[U, W], &[1.0, bad]);
+        assert_eq!(s, fmi2Error, "seed {bad} accepted");
+        assert!(d.iter().all(|x| x.is_nan()), "dvUnknown written: {d:?}");
+        assert!(f.has_log(
+            fmi2Error,
+            &format!("fmi2GetDirectionalDerivative: dvKnown[1] = {bad:?} must be finite")
+        ));
+        assert!(
+            f.state_bytes() == before,
+            "the refused call changed the instance"
+        );
+    }
+    let (s, d) = dir_deriv(&f, &[Y], &[U, W], &[1.0, 0.0]);
+    f.ok(s);
+    assert!(d[0].is_finite() && d[0] != 0.0, "{d:?}");
+}
+
 #[test]
 fn input_and_output_derivatives() {
     let f = Fmu::<Lag>::running();

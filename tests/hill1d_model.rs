@@ -318,9 +318,21 @@ fn bad_input_is_rejected_and_changes_nothing() {
     m.set_real(Var::Activation, 0.5).unwrap();
     m.do_step(0.0, 1e-3).unwrap();
     let before = m.clone();
-    for v in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.01] {
+    for v in [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        0.0,
+        -0.01,
+        9e-6,
+        101.0,
+    ] {
         let e = m.set_real(Var::Length, v).unwrap_err();
-        assert!(e.0.contains("length") && e.0.contains("> 0"), "{}", e.0);
+        assert!(
+            e.0.contains("length") && e.0.contains("must be finite and in [1e-5, 100]"),
+            "{}",
+            e.0
+        );
         assert_eq!(m, before);
     }
     let e = m.set_real(Var::Activation, f64::NAN).unwrap_err();

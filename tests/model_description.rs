@@ -185,10 +185,11 @@ fn the_actuator_declares_stiffness_in_newton_per_metre() {
         .iter()
         .any(|u| u.name == "N/m" && u.kg == 1 && u.s == -2));
     assert!(!Hill1D::info().units.iter().any(|u| u.name == "N/m"));
-    // The GUID of HillMuscle1D before it became a scene (unchanged), and
-    // HillMuscleFE's since it gained adaptive_substeps and substep_tolerance
-    // (a new interface, a new GUID).
-    assert_eq!(guid::<Hill1D>(), "{3618d8ad-519f-8b75-ad8f-292e0bbc3195}");
+    // The GUIDs of the two full FMUs since the `length` input declares its
+    // own range (LENGTH_RANGE, [1e-5, 100] m, in place of L0's): a new
+    // interface, a new GUID. Pinned so that an unintended interface change
+    // shows here.
+    assert_eq!(guid::<Hill1D>(), "{7c808cb6-7bd7-8378-be77-25860ec4a448}");
     #[cfg(feature = "fe")]
-    assert_eq!(guid::<HillFE>(), "{d10e0f03-947e-8937-b170-df59be8e9b4e}");
+    assert_eq!(guid::<HillFE>(), "{23e0a860-6d93-8d7e-877d-f67d59cb0c8c}");
 }

@@ -1160,6 +1160,13 @@ pub unsafe fn get_directional_derivative<M: Model>(
             let unknowns = in_slice(&inst.log, F, "vUnknown_ref", v_unknown_ref, n_unknown)?;
             let knowns = in_slice(&inst.log, F, "vKnown_ref", v_known_ref, n_known)?;
             let dv_k = in_slice(&inst.log, F, "dvKnown", dv_known, n_known)?;
+            if let Some(i) = dv_k.iter().position(|d| !d.is_finite()) {
+                inst.log.error(&format!(
+                    "{F}: dvKnown[{i}] = {:?} must be finite (a seed of the known variables)",
+                    dv_k[i]
+                ));
+                return Err(fmi2Error);
+            }
             let dv_u = out_slice(&inst.log, F, "dvUnknown", dv_unknown, n_unknown)?;
             let initializing = inst.layer.fmi_state == FmiState::InitializationMode;
             let refuse =

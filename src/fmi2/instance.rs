@@ -503,8 +503,11 @@ pub fn decode_state<M: Model>(guid: &str, data: &[u8]) -> Result<Snapshot<M>, St
     let last_successful_time = r.f64().map_err(e)?;
     let dirty = r.bool().map_err(e)?;
     let status_code = r.u8().map_err(e)?;
+    // fmi2DoStep leaves fmi2OK, fmi2Discard or fmi2Error (fmi2Warning
+    // allowed); never fmi2Pending (no asynchronous steps) or fmi2Fatal.
     let last_step_status = fmi2Status::from_u8(status_code)
-        .ok_or_else(|| format!("malformed FMU state: invalid status code {status_code}"))?;
+        .filter(|s| matches!(*s, fmi2OK | fmi2Warning | fmi2Discard | fmi2Error))
+        .ok_or_else(|| format!("malformed FMU state: invalid last step status {status_code}"))?;
     let model_terminated = r.bool().map_err(e)?;
     let mut model_bytes = r.bytes().map_err(e)?;
     r.expect_end().map_err(e)?;

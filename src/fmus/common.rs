@@ -1,6 +1,7 @@
 //! What the muscle FMUs share: units, variable-table helpers, range checks.
 
 use crate::fmi2::{Causality, ModelError, ScalarVariable, Unit, VarType, Variability};
+use crate::law::hill_fibre::FibreHistory;
 use crate::law::params::Range;
 
 /// Tolerance of both models' substep control (`substep_tolerance`'s
@@ -89,17 +90,6 @@ pub fn input<V>(
     }
 }
 
-/// `v` finite and > 0, else an error naming `name`.
-pub fn check_positive(name: &str, v: f64) -> Result<(), ModelError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be finite and > 0"
-        )))
-    }
-}
-
 /// `v` in `range`, else an error naming `name` and the range.
 pub fn check_range(name: &str, v: f64, range: Range) -> Result<(), ModelError> {
     if range.contains(v) {
@@ -119,5 +109,30 @@ pub fn check_unit_interval(name: &str, v: f64) -> Result<(), ModelError> {
         Err(ModelError(format!(
             "{name} = {v} is out of range: must be in [0, 1]"
         )))
+    }
+}
+
+/// A restored FMU state's drive, as strict as the calls that set it: the
+/// activation command (clamped into [0, 1] when set) and the activation
+/// level (MODEL_NOTES "Activation dynamics": it stays in [0, 1]) in [0, 1].
+pub fn check_restored_drive(command: f64, activation_level: f64) -> Result<(), ModelError> {
+    check_unit_interval("activation", command)?;
+    check_unit_interval("activation level", activation_level)
+}
+
+/// A restored FMU state's fibre histories: every committed CE and SEE
+/// stretch finite and > 0, as the CE–SEE update leaves them (it refuses a
+/// step that would make one non-positive, [`FibreHistory::check_physical`]).
+pub fn check_restored_history(histories: &[FibreHistory]) -> Result<(), ModelError> {
+    let positive = |x: f64| x.is_finite() && x > 0.0;
+    match histories
+        .iter()
+        .position(|h| !(positive(h.lambda_m) && positive(h.lambda_s)))
+    {
+        None => Ok(()),
+        Some(i) => Err(ModelError(format!(
+            "fibre history {i}: CE stretch {} and SEE stretch {} must be finite and > 0",
+            histories[i].lambda_m, histories[i].lambda_s
+        ))),
     }
 }

@@ -24,8 +24,8 @@
 //! length and `initial_activation`.
 
 use super::common::{
-    check_positive, check_range, check_unit_interval, parameter, real, substep_tolerance_type,
-    units,
+    check_range, check_restored_drive, check_restored_history, check_unit_interval, parameter,
+    real, substep_tolerance_type, units,
 };
 pub use super::common::{SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE};
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
@@ -37,7 +37,7 @@ use crate::law::activation::{level_at, Decay};
 use crate::law::force_length::force_length;
 use crate::law::force_velocity::branch_included;
 use crate::law::hill_fibre::{backward_euler_error, ce_stretch, MAX_CONTROLLED_TRIES};
-use crate::law::params::{AREA_RANGE, L0_RANGE};
+use crate::law::params::{AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, evaluable_stretch_range, Sensitivity};
 use crate::law::{
@@ -723,7 +723,9 @@ impl<S: Scene> Hill1DModel<S> {
                 FibreRate::Step { h: hs_j },
                 q_guess,
             )
-            .map_err(|e| StepError::Discard(self.unsolvable(lam_j * self.l0, &e.0)))?;
+            .map_err(|e| {
+                StepError::Discard(self.unsolvable_step(lam_j * self.l0, lam_j - lam, hs_j, &e.0))
+            })?;
             stats.lateral_iterations = stats.lateral_iterations.saturating_add(u.iterations);
             stats.ce_iterations = stats.ce_iterations.saturating_add(u.ce_iterations);
             // Without the CE the step map has no history: one piece, exact.
@@ -809,6 +811,32 @@ impl<S: Scene> Hill1DModel<S> {
             prev = Some(([q0, ls0], [u.q, u.fibre.history.lambda_s], hs_j));
         }
     }
+    /// The lateral solve of a step at zero drive (activation 0, MODEL_NOTES
+    /// "Hill fibre" with σ0 a f_λ = 0) to `lambda_end`, from the committed
+    /// history and the predicted q: what [`Self::solve_passive`] and
+    /// [`Self::solve_rest`] share, so that both give the general path's one
+    /// piece bit for bit.
+    #[inline(always)]
+    fn solve_at_zero_drive(&self, h: f64, lambda_end: f64) -> Result<Uniaxial, StepError> {
+        let q_guess = Predictor::predict(&self.predict.q, self.q, lambda_end - self.lambda, 0.0, h);
+        solve_uniaxial_with::<LawOf<S>>(
+            &self.params,
+            lambda_end,
+            0.0,
+            &self.history,
+            FibreRate::Step { h },
+            q_guess,
+        )
+        .map_err(|e| {
+            StepError::Discard(self.unsolvable_step(
+                lambda_end * self.l0,
+                lambda_end - self.lambda,
+                h,
+                &e.0,
+            ))
+        })
+    }
+
     /// The step of a scene without the contractile element: the fibre is the
     /// parallel element alone, so the state at the end of the step depends
     /// on the end stretch only (no history, no activation: MODEL_NOTES "Hill
@@ -820,17 +848,7 @@ impl<S: Scene> Hill1DModel<S> {
     /// bit (tests/scenes.rs).
     #[inline(always)]
     fn solve_passive(&self, h: f64, lambda_end: f64) -> Result<Stepped, StepError> {
-        let p = &self.params;
-        let q_guess = Predictor::predict(&self.predict.q, self.q, lambda_end - self.lambda, 0.0, h);
-        let u = solve_uniaxial_with::<LawOf<S>>(
-            p,
-            lambda_end,
-            0.0,
-            &self.history,
-            FibreRate::Step { h },
-            q_guess,
-        )
-        .map_err(|e| StepError::Discard(self.unsolvable(lambda_end * self.l0, &e.0)))?;
+        let u = self.solve_at_zero_drive(h, lambda_end)?;
         let stats = StepStatistics {
             substeps: 1,
             rejected_substeps: 0,
@@ -860,16 +878,7 @@ impl<S: Scene> Hill1DModel<S> {
     /// `the_rest_shortcut_changes_nothing`).
     fn solve_rest(&self, h: f64, lambda_end: f64, da_du: f64) -> Result<Stepped, StepError> {
         let p = &self.params;
-        let q_guess = Predictor::predict(&self.predict.q, self.q, lambda_end - self.lambda, 0.0, h);
-        let u = solve_uniaxial_with::<LawOf<S>>(
-            p,
-            lambda_end,
-            0.0,
-            &self.history,
-            FibreRate::Step { h },
-            q_guess,
-        )
-        .map_err(|e| StepError::Discard(self.unsolvable(lambda_end * self.l0, &e.0)))?;
+        let u = self.solve_at_zero_drive(h, lambda_end)?;
         u.fibre
             .history
             .check_physical(p.k, u.lambda_f)
@@ -969,6 +978,22 @@ impl<S: Scene> Hill1DModel<S> {
         }
     }
 
+    /// Message for a step (or substep) of length `h` that changes the stretch
+    /// by `dlambda` and whose law cannot be solved: when 1/h or the stretch
+    /// rate dlambda / h of the backward-Euler CE update (MODEL_NOTES "Hill
+    /// fibre") is not finite, the step is too short to be evaluated and the
+    /// message names `communicationStepSize`; otherwise [`Self::unsolvable`].
+    fn unsolvable_step(&self, length: f64, dlambda: f64, h: f64, why: &str) -> String {
+        if (1.0 / h).is_finite() && (dlambda / h).is_finite() {
+            return self.unsolvable(length, why);
+        }
+        format!(
+            "communicationStepSize too short: a step of {h:e} s to length = {length} m (length/L0 changes by \
+             {dlambda}) has a non-finite 1/h or stretch rate, so the CE update (backward Euler) cannot be \
+             evaluated; use a longer step; solver: {why}"
+        )
+    }
+
     fn check_setup(&self) -> Result<(), ModelError> {
         self.params
             .validate()
@@ -976,7 +1001,7 @@ impl<S: Scene> Hill1DModel<S> {
         check_range("L0", self.l0, L0_RANGE)?;
         check_range("area", self.area, AREA_RANGE)?;
         check_unit_interval("initial_activation", self.initial_activation)?;
-        check_positive("length", self.length())?;
+        check_range("length", self.length(), LENGTH_RANGE)?;
         Ok(())
     }
 }
@@ -1097,7 +1122,7 @@ impl<S: Scene> Model for Hill1DModel<S> {
                 self.substep_tolerance = value;
             }
             Var::Length => {
-                check_positive("length", value)?;
+                check_range("length", value, LENGTH_RANGE)?;
                 self.length = Some(value);
             }
             Var::Activation => {
@@ -1401,6 +1426,12 @@ impl<S: Scene> Model for Hill1DModel<S> {
             return Err(bad("a non-finite value".into()));
         }
         m.check_setup().map_err(|e| bad(e.0))?;
+        check_restored_drive(m.command, m.activation_level)
+            .and_then(|()| check_restored_history(&[m.history]))
+            .map_err(|e| bad(e.0))?;
+        if m.lambda <= 0.0 {
+            return Err(bad(format!("stretch {} must be > 0", m.lambda)));
+        }
         m.stretch_range = evaluable_stretch_range(&m.params);
         Ok(m)
     }
@@ -1514,8 +1545,8 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
         real(
             "m",
             Some(DEFAULT_L0),
-            Some(L0_RANGE.min),
-            Some(L0_RANGE.max),
+            Some(LENGTH_RANGE.min),
+            Some(LENGTH_RANGE.max),
         ),
         Var::Length,
     ));
@@ -1623,3 +1654,72 @@ fmi2ExitInitializationMode.</li>
 that produced the current outputs (consistent tangent, history fixed).</li>
 </ul>
 "#;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A restored state is checked as strictly as the calls that produce
+    /// its values: an activation command or level outside [0, 1], a
+    /// non-positive CE or SEE stretch, a non-positive stretch or a length
+    /// outside its range is refused naming it (a crafted state: the
+    /// layer's checksum is not a signature), while the unmodified state
+    /// round-trips.
+    #[test]
+    fn a_restored_state_with_unphysical_values_is_refused() {
+        let mut m = Hill1D::new();
+        m.set_real(Var::Activation, 0.6).unwrap();
+        m.set_real(Var::Length, 1.05 * DEFAULT_L0).unwrap();
+        m.initialize().unwrap();
+        for _ in 0..3 {
+            m.do_step(0.0, 1e-3).unwrap();
+        }
+        let restore = |m: &Hill1D| {
+            let mut bytes = Vec::new();
+            m.serialize(&mut bytes);
+            Hill1D::deserialize(&mut bytes.as_slice())
+        };
+        let force = Var::Out(Output::Force);
+        let back = restore(&m).expect("an unmodified state");
+        assert_eq!(back.get_real(force), m.get_real(force));
+        let refused = |forge: &dyn Fn(&mut Hill1D), what: &str| {
+            let mut f = m.clone();
+            forge(&mut f);
+            match restore(&f) {
+                Ok(_) => panic!("a state with {what} was accepted"),
+                Err(e) => assert!(e.0.contains(what), "{what}: {}", e.0),
+            }
+        };
+        refused(&|f| f.command = 5.0, "activation = 5");
+        refused(&|f| f.command = -3.0, "activation = -3");
+        refused(&|f| f.activation_level = 4.0, "activation level = 4");
+        refused(&|f| f.history.lambda_m = -1.0, "CE stretch -1");
+        refused(&|f| f.history.lambda_s = 0.0, "SEE stretch 0");
+        refused(&|f| f.lambda = -0.5, "stretch -0.5 must be > 0");
+        refused(&|f| f.length = Some(1e3), "length = 1000");
+    }
+
+    /// A step so short that 1/h overflows (h = 5e-324, finite and > 0, so
+    /// the layer accepts it) after a length change is discarded with a
+    /// message that names the step size, not the volumetric term D, and the
+    /// model is unchanged.
+    #[test]
+    fn a_step_too_short_to_evaluate_is_discarded_naming_the_step_size() {
+        let mut m = Hill1D::new();
+        m.set_real(Var::Activation, 1.0).unwrap();
+        m.initialize().unwrap();
+        m.do_step(0.0, 1e-3).unwrap();
+        m.set_real(Var::Length, 1.2 * DEFAULT_L0).unwrap();
+        let before = m.clone();
+        match m.do_step(1e-3, 5e-324) {
+            Err(StepError::Discard(msg)) => {
+                assert!(msg.starts_with("communicationStepSize too short"), "{msg}");
+                assert!(!msg.contains("D ="), "{msg}");
+            }
+            other => panic!("expected a discard, got {other:?}"),
+        }
+        assert_eq!(m, before);
+        // A normal short step from the same state goes through.
+        m.do_step(1e-3, 1e-9).unwrap();
+    }
+}

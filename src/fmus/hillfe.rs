@@ -42,12 +42,12 @@ use crate::fmi2::{
     VarType, Variability,
 };
 use crate::fmus::common::{
-    check_positive, check_range, check_unit_interval, input, parameter, real,
-    substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
+    check_range, check_restored_drive, check_restored_history, check_unit_interval, input,
+    parameter, real, substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
 };
 use crate::law::activation::{level_at, Decay};
 use crate::law::hill_fibre::MAX_CONTROLLED_TRIES;
-use crate::law::params::{Range, AREA_RANGE, L0_RANGE};
+use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{FibreHistory, FibreRate, ParamId, Params, PARAMETERS};
 use crate::scene::{Scene, Value};
@@ -427,7 +427,7 @@ impl<S: Scene> HillFEModel<S> {
         check_range("area", self.area, AREA_RANGE)?;
         check_unit_interval("initial_activation", self.initial_activation)?;
         check_range("axial_grading", self.axial_grading, AXIAL_GRADING_RANGE)?;
-        check_positive("length", self.length())?;
+        check_range("length", self.length(), LENGTH_RANGE)?;
         Ok(())
     }
 
@@ -757,7 +757,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                 self.substep_tolerance = value;
             }
             Var::Length => {
-                check_positive("length", value)?;
+                check_range("length", value, LENGTH_RANGE)?;
                 self.length = Some(value);
             }
             Var::Activation => {
@@ -1171,6 +1171,7 @@ impl<S: Scene> Model for HillFEModel<S> {
         if finite.iter().chain(&m.outputs).any(|x| !x.is_finite()) {
             return Err(bad("a non-finite value".into()));
         }
+        check_restored_drive(m.command, m.activation_level).map_err(|e| bad(e.0))?;
         if r.bool()? {
             let (l0, area) = (r.f64()?, r.f64()?);
             let (n_axial, n_radial) = (r.i32()?, r.i32()?);
@@ -1232,6 +1233,9 @@ impl<S: Scene> Model for HillFEModel<S> {
             {
                 return Err(bad("a non-finite value".into()));
             }
+            check_restored_history(&history)
+                .and_then(|()| check_unit_interval("committed activation level", activation))
+                .map_err(|e| bad(e.0))?;
             let n_dofs = 3 * disc.n_nodes();
             let positions = |v: Vec<f64>| -> Result<Vec<f64>, ModelError> {
                 if v.len() != n_dofs || v.iter().any(|x| !x.is_finite()) {
@@ -1490,8 +1494,8 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
         real(
             "m",
             Some(DEFAULT_L0),
-            Some(L0_RANGE.min),
-            Some(L0_RANGE.max),
+            Some(LENGTH_RANGE.min),
+            Some(LENGTH_RANGE.max),
         ),
         Var::Length,
     ));
@@ -1660,6 +1664,43 @@ mod tests {
     /// tangent, which holds that piece's start history fixed and is
     /// distinctly off here; a restored copy of the state gives the same
     /// derivatives bit for bit; a step in one piece clears the record.
+    /// A restored state is checked as strictly as the calls that produce
+    /// its values: an activation command or level outside [0, 1], or a
+    /// non-positive CE or SEE stretch in the history, is refused naming it
+    /// (a crafted state: the layer's checksum is not a signature), while the
+    /// unmodified state round-trips.
+    #[test]
+    fn a_restored_state_with_unphysical_values_is_refused() {
+        let m = run(&muscle(1.05, 0.3, false), 1.06 * DEFAULT_L0, 0.6, 1e-3, 2);
+        let restore = |m: &HillFE| {
+            let mut bytes = Vec::new();
+            m.serialize(&mut bytes);
+            HillFE::deserialize(&mut bytes.as_slice())
+        };
+        let back = restore(&m).expect("an unmodified state");
+        assert_eq!(force(&back), force(&m));
+        let refused = |forge: &dyn Fn(&mut HillFE), what: &str| {
+            let mut f = m.clone();
+            forge(&mut f);
+            match restore(&f) {
+                Ok(_) => panic!("a state with {what} was accepted"),
+                Err(e) => assert!(e.0.contains(what), "{what}: {}", e.0),
+            }
+        };
+        refused(&|f| f.command = 5.0, "activation = 5");
+        refused(&|f| f.command = -3.0, "activation = -3");
+        refused(&|f| f.activation_level = 4.0, "activation level = 4");
+        refused(
+            &|f| f.muscle.as_mut().unwrap().history[3].lambda_m = -1.0,
+            "fibre history 3: CE stretch -1",
+        );
+        refused(
+            &|f| f.muscle.as_mut().unwrap().history[0].lambda_s = 0.0,
+            "fibre history 0: CE stretch",
+        );
+        refused(&|f| f.length = Some(1e3), "length = 1000");
+    }
+
     #[test]
     fn a_substepped_step_has_the_derivatives_of_its_step_map() {
         let before = muscle(1.1, 0.3, true);

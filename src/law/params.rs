@@ -81,6 +81,14 @@ const fn between(min: f64, max: f64) -> Range {
 /// to a 10 m cable; `1/L0` and `L0 * stretch` stay far from overflow.
 pub const L0_RANGE: Range = between(1e-4, 10.0);
 
+/// Valid range of the `length` input (m): a tenth of the shortest `L0` to ten
+/// times the longest, so every stretch length/L0 in [0.1, 10] is accepted for
+/// every `L0` (the law's evaluable stretches at the default b are about
+/// [0.061, 5.70], `uniaxial::evaluable_stretch_range`). Whether the law can be
+/// solved at a given length/L0 depends on the parameters and is the step's to
+/// judge (fmi2Discard with the evaluable range in the message).
+pub const LENGTH_RANGE: Range = between(1e-5, 100.0);
+
 /// Valid range of a reference cross-section `area` (m²).
 pub const AREA_RANGE: Range = between(1e-10, 1.0);
 

@@ -2130,6 +2130,7 @@ fn expect(call: &Call, pre: &LayerState, f: &Fmu) -> Expect {
         Call::DirDeriv {
             unknowns,
             knowns,
+            dv,
             ptrs,
             len,
             ..
@@ -2137,7 +2138,9 @@ fn expect(call: &Call, pre: &LayerState, f: &Fmu) -> Expect {
             let bad_arrays = *len == Len::Impossible
                 || (!unknowns.is_empty() && (ptrs[0] == Ptr::Null || ptrs[3] == Ptr::Null))
                 || (!knowns.is_empty() && (ptrs[1] == Ptr::Null || ptrs[2] == Ptr::Null));
+            // A seed must be finite (README "Bad input").
             if bad_arrays
+                || dv.iter().any(|v| !v.is_finite())
                 || !unknowns
                     .iter()
                     .all(|&vr| is_real_with(vr, Causality::Output))
@@ -4797,6 +4800,48 @@ pub fn deserialized_state_with_non_finite_time_is_refused() {
     }
 }
 
+/// Found by a review probe (a crafted state, checksum recomputed). A
+/// serialized state whose last step status is `fmi2Pending` (or any code
+/// `fmi2DoStep` never leaves) was accepted, and `fmi2GetStatus
+/// (fmi2DoStepStatus)` then reported an asynchronous step this FMU never
+/// runs. Inputs: the pool state after 20 steps with the status byte set to
+/// each of fmi2Pending and fmi2Fatal. Expected: `fmi2DeSerializeFMUstate`
+/// refuses it, naming the status; the unmodified state is accepted. Was:
+/// `fmi2OK` (fixed: `decode_state` accepts OK, Warning, Discard, Error).
+pub fn deserialized_state_with_an_impossible_step_status_is_refused() {
+    let f = Fmu::new(false);
+    // After the state code: time, start, stop flag, stop, tolerance flag,
+    // tolerance, last successful time, dirty (1 + 8 + 8 + 1 + 8 + 1 + 8 + 8 + 1).
+    let at = state_code_offset() + 44;
+    let good = pool()[P_RUN].clone();
+    assert_eq!(
+        good[at], fmi2OK as u8,
+        "the status byte is not where expected"
+    );
+    for code in [fmi2OK as u8, fmi2Pending as u8, fmi2Fatal as u8] {
+        let mut b = good.clone();
+        b[at] = code;
+        fix_checksum(&mut b);
+        let mut s: fmi2FMUstate = null_mut();
+        let d = unsafe {
+            api::deserialize_fmu_state::<M>(f.c, b.as_ptr() as *const fmi2Byte, b.len(), &mut s)
+        };
+        if code == fmi2OK as u8 {
+            assert_eq!(d, fmi2OK, "the unmodified state was refused");
+            continue;
+        }
+        assert_eq!(d, fmi2Error, "last step status {code} accepted");
+        assert!(s.is_null());
+        let logs = f.book.take();
+        assert!(
+            logs.iter().any(|e| e
+                .message
+                .contains(&format!("invalid last step status {code}"))),
+            "{logs:?}"
+        );
+    }
+}
+
 /// Found by the second long run (`API_ABUSE_CASES=1000000`, default seed,
 /// after 2,882 s): `fmi2SetupExperiment(startTime = f64::MAX, stopTime =
 /// f64::MAX)`, initialization, `fmi2DoStep(f64::MAX, 1e300)` completed with
@@ -4910,6 +4955,7 @@ macro_rules! harness_tests {
             tiny_step_leaves_a_serializable_state,
             a_step_to_an_infinite_time_is_refused,
             deserialized_state_with_non_finite_time_is_refused,
+            deserialized_state_with_an_impossible_step_status_is_refused,
             setup_experiment_with_a_non_finite_tolerance_is_refused
         );
     };

@@ -107,12 +107,13 @@ def assert_continues_like_twin(a, b, n=30, start=60):
     assert a.get("length", "activation") == b.get("length", "activation")
 
 
-@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf, 0.0, -0.01, -0.0])
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf, 0.0, -0.01, -0.0, 9e-6, 101.0, 1e10])
 def test_bad_length_is_rejected_and_changes_nothing(muscle, bad):
-    """length NaN / +-inf / 0 / negative: fmpy raises FMICallException with
-    fmi2Error; the outputs and the input's value are unchanged; the error is
-    logged naming `length`; stepping on gives exactly what an instance that
-    never saw the bad set gives."""
+    """length NaN / +-inf / 0 / negative / outside its declared [1e-5, 100] m:
+    fmpy raises FMICallException with fmi2Error; the outputs and the input's
+    value are unchanged; the error is logged naming `length` and its range;
+    stepping on gives exactly what an instance that never saw the bad set
+    gives."""
     a, b = twins(muscle)
     before = a.output_vector()
     length_before = a.get("length")
@@ -121,7 +122,38 @@ def test_bad_length_is_rejected_and_changes_nothing(muscle, bad):
     assert exc.value.status == fmi2Error
     assert a.output_vector() == before
     assert a.get("length") == length_before
-    assert any(names_variable_and_range(msg, "length") for msg in messages(a, fmi2Error)), a.log
+    assert any(names_variable_and_range(msg, "length") and "[1e-5, 100]" in msg
+               for msg in messages(a, fmi2Error)), a.log
+    assert_continues_like_twin(a, b)
+
+
+def test_declared_length_range_is_the_one_enforced(muscle):
+    """The modelDescription's min/max of `length` are what fmi2SetReal
+    enforces: both bounds are accepted, the next doubles outside refused."""
+    m = muscle()
+    var = m.loaded.variables["length"]
+    lo, hi = float(var.min), float(var.max)
+    assert (lo, hi) == (1e-5, 100.0)
+    for ok in (lo, hi):
+        assert set_real_status(m, "length", ok) == fmi2OK
+    for bad in (math.nextafter(lo, 0.0), math.nextafter(hi, math.inf)):
+        assert set_real_status(m, "length", bad) == fmi2Error
+
+
+def test_non_finite_directional_derivative_seed_is_rejected(muscle):
+    """fmi2GetDirectionalDerivative with a NaN or infinite seed dvKnown:
+    fmi2Error naming dvKnown; the instance continues like its twin, and a
+    finite seed then gives the derivative."""
+    a, b = twins(muscle)
+    before = a.output_vector()
+    for bad in (math.nan, math.inf):
+        with pytest.raises(FMICallException) as exc:
+            a.slave.getDirectionalDerivative([a.vr["force"]], [a.vr["length"]], [bad])
+        assert exc.value.status == fmi2Error
+        assert any("dvKnown[0]" in msg and "must be finite" in msg for msg in messages(a, fmi2Error)), a.log
+    assert a.output_vector() == before
+    (d,) = a.slave.getDirectionalDerivative([a.vr["force"]], [a.vr["length"]], [1.0])
+    assert math.isfinite(d) and d > 0
     assert_continues_like_twin(a, b)
 
 
