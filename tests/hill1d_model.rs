@@ -226,6 +226,82 @@ fn directional_derivatives_match_finite_differences_of_the_step_map() {
     }
 }
 
+/// The outputs of the initialization at length `l` and command `u`
+/// (activation dynamics off, so the level is the command).
+fn initial_outputs(l: f64, u: f64) -> Vec<f64> {
+    let mut m = Hill1D::new();
+    m.set_boolean(Var::ActivationDynamics, false).unwrap();
+    m.set_real(Var::Activation, u).unwrap();
+    m.set_real(Var::Length, l).unwrap();
+    m.initialize().unwrap();
+    ALL_OUTPUTS.iter().map(|&o| out(&m, o)).collect()
+}
+
+/// After initialization the partial derivatives are those of the isometric
+/// equilibrium (MODEL_NOTES "Co-simulation": f_v = 1, the isometric CE–SEE
+/// branch): checked against central differences of re-initializing at
+/// L ± δ and u ± δ, for every output, passive-stretched, active and
+/// active-shortened.
+#[test]
+fn initial_directional_derivatives_match_finite_differences_of_the_initialization() {
+    for &(l, u) in &[(0.055, 0.0), (0.053, 0.6), (0.047, 0.9)] {
+        let mut m = Hill1D::new();
+        m.set_boolean(Var::ActivationDynamics, false).unwrap();
+        m.set_real(Var::Activation, u).unwrap();
+        m.set_real(Var::Length, l).unwrap();
+        m.initialize().unwrap();
+        let (dl, du) = (1e-8, 1e-6);
+        let lp = initial_outputs(l + dl, u);
+        let lm = initial_outputs(l - dl, u);
+        // At u = 0 the command cannot go below 0: the second-order
+        // one-sided difference (−3 f(0) + 4 f(δ) − f(2δ)) / 2δ.
+        let d_du: Vec<f64> = if u > 0.0 {
+            let (up, um) = (initial_outputs(l, u + du), initial_outputs(l, u - du));
+            up.iter()
+                .zip(&um)
+                .map(|(p, m)| (p - m) / (2.0 * du))
+                .collect()
+        } else {
+            let (f0, f1, f2) = (
+                initial_outputs(l, 0.0),
+                initial_outputs(l, du),
+                initial_outputs(l, 2.0 * du),
+            );
+            (0..f0.len())
+                .map(|k| (-3.0 * f0[k] + 4.0 * f1[k] - f2[k]) / (2.0 * du))
+                .collect()
+        };
+        let stress_scale = out(&m, Output::Stress).abs().max(1.0);
+        for (k, &o) in ALL_OUTPUTS.iter().enumerate() {
+            // passive_stress = stress − active_stress: the stress outputs'
+            // rounding is that of the stress; the others carry their own.
+            let part = matches!(
+                o,
+                Output::Stress
+                    | Output::CauchyStress
+                    | Output::ActiveStress
+                    | Output::PassiveStress
+            );
+            let value_scale = if part {
+                stress_scale.max(out(&m, o).abs())
+            } else {
+                out(&m, o).abs().max(1.0)
+            };
+            for (fd, known, step, rel) in [
+                ((lp[k] - lm[k]) / (2.0 * dl), Var::Length, dl, 1e-6),
+                (d_du[k], Var::Activation, du, 1e-5),
+            ] {
+                let an = m.partial_derivative(Var::Out(o), known).unwrap();
+                let tol = rel * an.abs().max(fd.abs()) + 1e-13 * value_scale / step;
+                assert!(
+                    (fd - an).abs() <= tol,
+                    "d {o:?} / d {known:?} at init, L={l} u={u}: fd {fd} vs {an} (tol {tol:e})"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn length_starts_at_l0_until_set() {
     // The length input's start is L0 (issue 2), also after L0 is changed.

@@ -347,6 +347,33 @@ mod tests {
         f * (j.cbrt().recip() * (1.0 + 0.02 * r()))
     }
 
+    /// P = τ F⁻ᵀ (first Piola–Kirchhoff) of `pt` at `f` against central
+    /// differences (step 1e-7) of the energy, `du(F+, F−) = U(F+) − U(F−)`,
+    /// to 1e-6 of |P|.
+    fn assert_piola_is_the_energy_derivative(
+        seed: u64,
+        f: &Matrix3<f64>,
+        pt: &LawPoint,
+        du: &dyn Fn(&Matrix3<f64>, &Matrix3<f64>) -> f64,
+    ) {
+        let piola = pt.kirchhoff() * f.try_inverse().unwrap().transpose();
+        let h = 1e-7;
+        let scale = piola.norm().max(1.0);
+        for i in 0..3 {
+            for j in 0..3 {
+                let (mut fp, mut fm) = (*f, *f);
+                fp[(i, j)] += h;
+                fm[(i, j)] -= h;
+                let fd = du(&fp, &fm) / (2.0 * h);
+                assert!(
+                    (fd - piola[(i, j)]).abs() < 1e-6 * scale,
+                    "seed {seed} P[{i}{j}]: fd {fd} vs {}",
+                    piola[(i, j)]
+                );
+            }
+        }
+    }
+
     #[test]
     fn stress_is_the_derivative_of_the_energy() {
         // P = ∂U/∂F (first Piola–Kirchhoff) = τ F⁻ᵀ; central differences.
@@ -359,25 +386,76 @@ mod tests {
         for seed in 1..40u64 {
             let f = sample_f(seed * 7919);
             let pt = LawPoint::new(&p, &f, &dir, 0.0, &FibreHistory::REST, FibreRate::Isometric);
-            let piola = pt.kirchhoff() * f.try_inverse().unwrap().transpose();
-            let h = 1e-7;
-            for i in 0..3 {
-                for j in 0..3 {
-                    let mut fp = f;
-                    fp[(i, j)] += h;
-                    let mut fm = f;
-                    fm[(i, j)] -= h;
-                    let fd =
-                        (passive_energy(&p, &fp, &dir) - passive_energy(&p, &fm, &dir)) / (2.0 * h);
-                    let scale = piola.norm().max(1.0);
-                    assert!(
-                        (fd - piola[(i, j)]).abs() < 1e-6 * scale,
-                        "seed {seed} P[{i}{j}]: fd {fd} vs {}",
-                        piola[(i, j)]
-                    );
-                }
-            }
+            assert_piola_is_the_energy_derivative(seed, &f, &pt, &|fp, fm| {
+                passive_energy(&p, fp, &dir) - passive_energy(&p, fm, &dir)
+            });
         }
+    }
+
+    /// The same check with the active fibre off the x axis: at a fixed
+    /// history, activation and step (MODEL_NOTES "Hill fibre": the CE–SEE
+    /// update is a function of λ̄f), the fibre's energy has dU_f/dλ̄f = W =
+    /// σ_s + σ_p, so U(F±) differ by U_I + U_J at F± plus ∫ W dλ̄f between
+    /// λ̄f(F−) and λ̄f(F+) (5-point Gauss–Legendre on that short interval).
+    /// P = τ F⁻ᵀ must be its derivative; a fibre term with a wrong direction,
+    /// deviator or factor of λ̄f fails it. The samples cover stretched and
+    /// compressed fibres (lengthening and shortening CE branches).
+    #[test]
+    fn stress_is_the_derivative_of_the_energy_for_an_oblique_active_fibre() {
+        let p = Params {
+            d_comp: 1e-4,
+            ..Params::default()
+        };
+        let dir = Vector3::new(0.0, 0.6, 0.8);
+        let (a, hist, rate) = (0.7, FibreHistory::REST, FibreRate::Step { h: 1e-3 });
+        let lambda_f = |f: &Matrix3<f64>| {
+            let j = f.determinant();
+            (j.powf(-2.0 / 3.0) * dir.dot(&(f.transpose() * f * dir))).sqrt()
+        };
+        let iso_energy = |f: &Matrix3<f64>| {
+            let j = f.determinant();
+            let i1 = j.powf(-2.0 / 3.0) * (f.transpose() * f).trace();
+            matrix_energy(i1, p.b, p.c) + volumetric_energy(j, p.d_comp)
+        };
+        let fibre_work = |l0: f64, l1: f64| {
+            const X: [f64; 5] = [
+                -0.906_179_845_938_664,
+                -0.538_469_310_105_683,
+                0.0,
+                0.538_469_310_105_683,
+                0.906_179_845_938_664,
+            ];
+            const W: [f64; 5] = [
+                0.236_926_885_056_189,
+                0.478_628_670_499_366,
+                0.568_888_888_888_889,
+                0.478_628_670_499_366,
+                0.236_926_885_056_189,
+            ];
+            let (mid, half) = (0.5 * (l0 + l1), 0.5 * (l1 - l0));
+            X.iter()
+                .zip(W)
+                .map(|(x, w)| w * fibre_response(&p, mid + half * x, a, &hist, rate).w)
+                .sum::<f64>()
+                * half
+        };
+        let (mut stretched, mut compressed) = (0, 0);
+        for seed in 1..40u64 {
+            let f = sample_f(seed * 7919);
+            if lambda_f(&f) > 1.0 {
+                stretched += 1;
+            } else {
+                compressed += 1;
+            }
+            let pt = LawPoint::new(&p, &f, &dir, a, &hist, rate);
+            assert_piola_is_the_energy_derivative(seed, &f, &pt, &|fp, fm| {
+                iso_energy(fp) - iso_energy(fm) + fibre_work(lambda_f(fm), lambda_f(fp))
+            });
+        }
+        assert!(
+            stretched >= 5 && compressed >= 5,
+            "{stretched} stretched, {compressed} compressed"
+        );
     }
 
     #[test]
