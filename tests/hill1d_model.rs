@@ -147,6 +147,15 @@ fn the_step_ends_at_the_input_length_or_its_extrapolation() {
 }
 
 /// Step `m` with inputs (u, L) and return the outputs.
+/// The stress outputs (their rounding is that of the stress:
+/// passive_stress = stress − active_stress).
+fn is_stress(o: Output) -> bool {
+    matches!(
+        o,
+        Output::Stress | Output::CauchyStress | Output::ActiveStress | Output::PassiveStress
+    )
+}
+
 fn step_outputs(m: &Hill1D, u: f64, l: f64, h: f64) -> Vec<f64> {
     let mut m = m.clone();
     m.set_real(Var::Activation, u).unwrap();
@@ -185,13 +194,7 @@ fn directional_derivatives_match_finite_differences_of_the_step_map() {
         // active_stress, so its partial is held to the stress partials' scale.
         let stress_scale = out(&m, Output::Stress).abs();
         for (k, &o) in ALL_OUTPUTS.iter().enumerate() {
-            let part = matches!(
-                o,
-                Output::Stress
-                    | Output::CauchyStress
-                    | Output::ActiveStress
-                    | Output::PassiveStress
-            );
+            let part = is_stress(o);
             let value_scale = if part {
                 stress_scale
             } else {
@@ -275,13 +278,7 @@ fn initial_directional_derivatives_match_finite_differences_of_the_initializatio
         for (k, &o) in ALL_OUTPUTS.iter().enumerate() {
             // passive_stress = stress − active_stress: the stress outputs'
             // rounding is that of the stress; the others carry their own.
-            let part = matches!(
-                o,
-                Output::Stress
-                    | Output::CauchyStress
-                    | Output::ActiveStress
-                    | Output::PassiveStress
-            );
+            let part = is_stress(o);
             let value_scale = if part {
                 stress_scale.max(out(&m, o).abs())
             } else {

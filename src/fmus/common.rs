@@ -136,3 +136,28 @@ pub fn check_restored_history(histories: &[FibreHistory]) -> Result<(), ModelErr
         ))),
     }
 }
+
+/// Test support for both models' restore checks: `m` serialized and
+/// deserialized again ([`Model::serialize`], [`Model::deserialize`]).
+#[cfg(test)]
+pub fn restored<M: crate::fmi2::Model>(m: &M) -> Result<M, ModelError> {
+    let mut bytes = Vec::new();
+    m.serialize(&mut bytes);
+    M::deserialize(&mut bytes.as_slice())
+}
+
+/// Test support: a copy of `m` changed by `forge` (a crafted state) is
+/// refused on restore, with a message that contains `what`.
+#[cfg(test)]
+pub fn assert_restore_refuses<M: crate::fmi2::Model + Clone>(
+    m: &M,
+    forge: impl Fn(&mut M),
+    what: &str,
+) {
+    let mut f = m.clone();
+    forge(&mut f);
+    match restored(&f) {
+        Ok(_) => panic!("a state with {what} was accepted"),
+        Err(e) => assert!(e.0.contains(what), "{what}: {}", e.0),
+    }
+}

@@ -1658,6 +1658,7 @@ that produced the current outputs (consistent tangent, history fixed).</li>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmus::common::{assert_restore_refuses, restored};
 
     /// A restored state is checked as strictly as the calls that produce
     /// its values: an activation command or level outside [0, 1], a
@@ -1674,29 +1675,16 @@ mod tests {
         for _ in 0..3 {
             m.do_step(0.0, 1e-3).unwrap();
         }
-        let restore = |m: &Hill1D| {
-            let mut bytes = Vec::new();
-            m.serialize(&mut bytes);
-            Hill1D::deserialize(&mut bytes.as_slice())
-        };
         let force = Var::Out(Output::Force);
-        let back = restore(&m).expect("an unmodified state");
+        let back = restored(&m).expect("an unmodified state");
         assert_eq!(back.get_real(force), m.get_real(force));
-        let refused = |forge: &dyn Fn(&mut Hill1D), what: &str| {
-            let mut f = m.clone();
-            forge(&mut f);
-            match restore(&f) {
-                Ok(_) => panic!("a state with {what} was accepted"),
-                Err(e) => assert!(e.0.contains(what), "{what}: {}", e.0),
-            }
-        };
-        refused(&|f| f.command = 5.0, "activation = 5");
-        refused(&|f| f.command = -3.0, "activation = -3");
-        refused(&|f| f.activation_level = 4.0, "activation level = 4");
-        refused(&|f| f.history.lambda_m = -1.0, "CE stretch -1");
-        refused(&|f| f.history.lambda_s = 0.0, "SEE stretch 0");
-        refused(&|f| f.lambda = -0.5, "stretch -0.5 must be > 0");
-        refused(&|f| f.length = Some(1e3), "length = 1000");
+        assert_restore_refuses(&m, |f| f.command = 5.0, "activation = 5");
+        assert_restore_refuses(&m, |f| f.command = -3.0, "activation = -3");
+        assert_restore_refuses(&m, |f| f.activation_level = 4.0, "activation level = 4");
+        assert_restore_refuses(&m, |f| f.history.lambda_m = -1.0, "CE stretch -1");
+        assert_restore_refuses(&m, |f| f.history.lambda_s = 0.0, "SEE stretch 0");
+        assert_restore_refuses(&m, |f| f.lambda = -0.5, "stretch -0.5 must be > 0");
+        assert_restore_refuses(&m, |f| f.length = Some(1e3), "length = 1000");
     }
 
     /// A step so short that 1/h overflows (h = 5e-324, finite and > 0, so

@@ -1590,6 +1590,7 @@ central differences of its map.</p>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmus::common::{assert_restore_refuses, restored};
 
     /// A 6 × 1 muscle at `stretch` L0 and activation level `level`, with or
     /// without `adaptive_substeps`.
@@ -1657,13 +1658,6 @@ mod tests {
         map_outputs(start, pieces, l, u, h)[Output::Force as usize]
     }
 
-    /// A step cut into pieces (level 0.3 -> command 0.6, 1.10 -> 1.12 L0,
-    /// 5 ms, adaptive): its directional derivatives are those of the whole
-    /// step's map (central differences of the same pieces from the same
-    /// start, steps 10x and 5x the model's, extrapolated), not those of the last piece's
-    /// tangent, which holds that piece's start history fixed and is
-    /// distinctly off here; a restored copy of the state gives the same
-    /// derivatives bit for bit; a step in one piece clears the record.
     /// A restored state is checked as strictly as the calls that produce
     /// its values: an activation command or level outside [0, 1], or a
     /// non-positive CE or SEE stretch in the history, is refused naming it
@@ -1672,33 +1666,22 @@ mod tests {
     #[test]
     fn a_restored_state_with_unphysical_values_is_refused() {
         let m = run(&muscle(1.05, 0.3, false), 1.06 * DEFAULT_L0, 0.6, 1e-3, 2);
-        let restore = |m: &HillFE| {
-            let mut bytes = Vec::new();
-            m.serialize(&mut bytes);
-            HillFE::deserialize(&mut bytes.as_slice())
-        };
-        let back = restore(&m).expect("an unmodified state");
+        let back = restored(&m).expect("an unmodified state");
         assert_eq!(force(&back), force(&m));
-        let refused = |forge: &dyn Fn(&mut HillFE), what: &str| {
-            let mut f = m.clone();
-            forge(&mut f);
-            match restore(&f) {
-                Ok(_) => panic!("a state with {what} was accepted"),
-                Err(e) => assert!(e.0.contains(what), "{what}: {}", e.0),
-            }
-        };
-        refused(&|f| f.command = 5.0, "activation = 5");
-        refused(&|f| f.command = -3.0, "activation = -3");
-        refused(&|f| f.activation_level = 4.0, "activation level = 4");
-        refused(
-            &|f| f.muscle.as_mut().unwrap().history[3].lambda_m = -1.0,
+        assert_restore_refuses(&m, |f| f.command = 5.0, "activation = 5");
+        assert_restore_refuses(&m, |f| f.command = -3.0, "activation = -3");
+        assert_restore_refuses(&m, |f| f.activation_level = 4.0, "activation level = 4");
+        assert_restore_refuses(
+            &m,
+            |f| f.muscle.as_mut().unwrap().history[3].lambda_m = -1.0,
             "fibre history 3: CE stretch -1",
         );
-        refused(
-            &|f| f.muscle.as_mut().unwrap().history[0].lambda_s = 0.0,
+        assert_restore_refuses(
+            &m,
+            |f| f.muscle.as_mut().unwrap().history[0].lambda_s = 0.0,
             "fibre history 0: CE stretch",
         );
-        refused(&|f| f.length = Some(1e3), "length = 1000");
+        assert_restore_refuses(&m, |f| f.length = Some(1e3), "length = 1000");
     }
 
     /// After initialization the partial derivatives are those of the
@@ -1742,6 +1725,13 @@ mod tests {
         }
     }
 
+    /// A step cut into pieces (level 0.3 -> command 0.6, 1.10 -> 1.12 L0,
+    /// 5 ms, adaptive): its directional derivatives are those of the whole
+    /// step's map (central differences of the same pieces from the same
+    /// start, steps 10x and 5x the model's, extrapolated), not those of the last piece's
+    /// tangent, which holds that piece's start history fixed and is
+    /// distinctly off here; a restored copy of the state gives the same
+    /// derivatives bit for bit; a step in one piece clears the record.
     #[test]
     fn a_substepped_step_has_the_derivatives_of_its_step_map() {
         let before = muscle(1.1, 0.3, true);

@@ -313,19 +313,30 @@ mod tests {
     use super::super::volumetric::volumetric_energy;
     use super::*;
 
+    /// The isochoric fibre stretch λ̄f = (J^(-2/3) a·C a)^(1/2) of `f` along `dir`.
+    fn fibre_stretch(f: &Matrix3<f64>, dir: &Vector3<f64>) -> f64 {
+        let j = f.determinant();
+        (j.powf(-2.0 / 3.0) * dir.dot(&(f.transpose() * f * dir))).sqrt()
+    }
+
+    /// The isotropic matrix and volumetric energies U_I(Ī1) + U_J(J) of `f`
+    /// (paper eq 3 and the volumetric penalty).
+    fn isotropic_energy(p: &Params, f: &Matrix3<f64>) -> f64 {
+        let j = f.determinant();
+        let i1 = j.powf(-2.0 / 3.0) * (f.transpose() * f).trace();
+        matrix_energy(i1, p.b, p.c) + volumetric_energy(j, p.d_comp)
+    }
+
     /// Energy of the hyperelastic parts with the passive fibre (a = 0): the PE
     /// energy is U_PE = σ0 A (λ̄f − 1)³ / 3 for λ̄f > 1.
     fn passive_energy(p: &Params, f: &Matrix3<f64>, dir: &Vector3<f64>) -> f64 {
-        let j = f.determinant();
-        let c = f.transpose() * f;
-        let i1 = j.powf(-2.0 / 3.0) * c.trace();
-        let lf = (j.powf(-2.0 / 3.0) * dir.dot(&(c * dir))).sqrt();
+        let lf = fibre_stretch(f, dir);
         let upe = if lf > 1.0 {
             p.sigma0 * p.a_pe * (lf - 1.0).powi(3) / 3.0
         } else {
             0.0
         };
-        matrix_energy(i1, p.b, p.c) + upe + volumetric_energy(j, p.d_comp)
+        isotropic_energy(p, f) + upe
     }
 
     fn sample_f(seed: u64) -> Matrix3<f64> {
@@ -408,15 +419,7 @@ mod tests {
         };
         let dir = Vector3::new(0.0, 0.6, 0.8);
         let (a, hist, rate) = (0.7, FibreHistory::REST, FibreRate::Step { h: 1e-3 });
-        let lambda_f = |f: &Matrix3<f64>| {
-            let j = f.determinant();
-            (j.powf(-2.0 / 3.0) * dir.dot(&(f.transpose() * f * dir))).sqrt()
-        };
-        let iso_energy = |f: &Matrix3<f64>| {
-            let j = f.determinant();
-            let i1 = j.powf(-2.0 / 3.0) * (f.transpose() * f).trace();
-            matrix_energy(i1, p.b, p.c) + volumetric_energy(j, p.d_comp)
-        };
+        let lambda_f = |f: &Matrix3<f64>| fibre_stretch(f, &dir);
         let fibre_work = |l0: f64, l1: f64| {
             const X: [f64; 5] = [
                 -0.906_179_845_938_664,
@@ -449,7 +452,8 @@ mod tests {
             }
             let pt = LawPoint::new(&p, &f, &dir, a, &hist, rate);
             assert_piola_is_the_energy_derivative(seed, &f, &pt, &|fp, fm| {
-                iso_energy(fp) - iso_energy(fm) + fibre_work(lambda_f(fm), lambda_f(fp))
+                isotropic_energy(&p, fp) - isotropic_energy(&p, fm)
+                    + fibre_work(lambda_f(fm), lambda_f(fp))
             });
         }
         assert!(
