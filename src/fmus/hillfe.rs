@@ -1679,7 +1679,7 @@ mod tests {
         assert_restore_refuses(
             &m,
             |f| f.muscle.as_mut().unwrap().history[0].lambda_s = 0.0,
-            "fibre history 0: CE stretch",
+            "and SEE stretch 0 must be finite and > 0",
         );
         assert_restore_refuses(&m, |f| f.length = Some(1e3), "length = 1000");
     }
