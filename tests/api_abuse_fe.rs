@@ -82,7 +82,7 @@
 //! CI mode (the default, a release build): 200 random sequences for the
 //! main property plus 50 corrupt-state and 50 instantiation cases, and the
 //! deterministic tests: the every-function and special-value tests with one
-//! sequence per state (7 each; the special-value sequences set all 32 Real
+//! sequence per state (7 each; the special-value sequences set all 33 Real
 //! and 4 Integer variables, ~3,100 calls each, debug logging on in every
 //! other state), 4 × 25,000 drift steps, the reset and NULL tests from
 //! every state, 40 parameter-bound cases — ~350 sequences in all. Measured
