@@ -146,7 +146,6 @@ fn the_step_ends_at_the_input_length_or_its_extrapolation() {
     );
 }
 
-/// Step `m` with inputs (u, L) and return the outputs.
 /// The stress outputs (their rounding is that of the stress:
 /// passive_stress = stress − active_stress).
 fn is_stress(o: Output) -> bool {
@@ -156,6 +155,7 @@ fn is_stress(o: Output) -> bool {
     )
 }
 
+/// Step `m` with inputs (u, L) and return the outputs.
 fn step_outputs(m: &Hill1D, u: f64, l: f64, h: f64) -> Vec<f64> {
     let mut m = m.clone();
     m.set_real(Var::Activation, u).unwrap();
@@ -229,14 +229,20 @@ fn directional_derivatives_match_finite_differences_of_the_step_map() {
     }
 }
 
-/// The outputs of the initialization at length `l` and command `u`
-/// (activation dynamics off, so the level is the command).
-fn initial_outputs(l: f64, u: f64) -> Vec<f64> {
+/// A model initialized at length `l` and command `u` (activation dynamics
+/// off, so the level is the command).
+fn initialized_at(l: f64, u: f64) -> Hill1D {
     let mut m = Hill1D::new();
     m.set_boolean(Var::ActivationDynamics, false).unwrap();
     m.set_real(Var::Activation, u).unwrap();
     m.set_real(Var::Length, l).unwrap();
     m.initialize().unwrap();
+    m
+}
+
+/// The outputs of [`initialized_at`].
+fn initial_outputs(l: f64, u: f64) -> Vec<f64> {
+    let m = initialized_at(l, u);
     ALL_OUTPUTS.iter().map(|&o| out(&m, o)).collect()
 }
 
@@ -248,11 +254,7 @@ fn initial_outputs(l: f64, u: f64) -> Vec<f64> {
 #[test]
 fn initial_directional_derivatives_match_finite_differences_of_the_initialization() {
     for &(l, u) in &[(0.055, 0.0), (0.053, 0.6), (0.047, 0.9)] {
-        let mut m = Hill1D::new();
-        m.set_boolean(Var::ActivationDynamics, false).unwrap();
-        m.set_real(Var::Activation, u).unwrap();
-        m.set_real(Var::Length, l).unwrap();
-        m.initialize().unwrap();
+        let m = initialized_at(l, u);
         let (dl, du) = (1e-8, 1e-6);
         let lp = initial_outputs(l + dl, u);
         let lm = initial_outputs(l - dl, u);

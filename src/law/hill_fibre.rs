@@ -659,6 +659,13 @@ mod tests {
         assert!((hist.lambda_s - iso.history.lambda_s).abs() < 1e-10);
     }
 
+    /// Whether λ̄f lies within the finite-difference reach (1e-4 in r) of a
+    /// break of f_λ's pieces (r = λ̄f / λopt = 0.4, 0.6, 1.4, 1.6; paper eq 11).
+    fn near_force_length_kink(p: &Params, lf: f64) -> bool {
+        let r = lf / p.lambda_opt;
+        [0.4, 0.6, 1.4, 1.6].iter().any(|k| (r - k).abs() < 1e-4)
+    }
+
     /// How [`check_derivatives`] differentiates: central differences with
     /// step `step`, or (`richardson`) extrapolated from `step` and `step / 2`
     /// (their step² terms cancel), for the stiff cases where rounding
@@ -836,8 +843,7 @@ mod tests {
             // Skip points within the finite-difference reach of a kink
             // (f_λ at r = 0.4, 0.6, 1.4, 1.6; f_v at λ̇m = 0 and at x = 1).
             let r = fibre_response(&p, lf, a, &hist, FibreRate::Step { h });
-            let rr = lf / p.lambda_opt;
-            let near_fl_kink = [0.4, 0.6, 1.4, 1.6].iter().any(|k| (rr - k).abs() < 1e-4);
+            let near_fl_kink = near_force_length_kink(&p, lf);
             let dl = (1.0 + p.k) * 1e-6 / h;
             let near_fv_kink = r.lambda_dot_m.abs() < 10.0 * dl
                 || (r.lambda_dot_m - p.lambda_dot_min).abs() < 10.0 * dl;
@@ -879,8 +885,7 @@ mod tests {
                     continue;
                 }
                 let r = fibre_response(&p, lf, a, &hist, FibreRate::Step { h });
-                let rr = lf / p.lambda_opt;
-                let near_fl_kink = [0.4, 0.6, 1.4, 1.6].iter().any(|k| (rr - k).abs() < 1e-4);
+                let near_fl_kink = near_force_length_kink(&p, lf);
                 let dl = (1.0 + p.k) * 1e-6 / h;
                 if r.lambda_dot_m < 10.0 * dl || near_fl_kink {
                     continue;
