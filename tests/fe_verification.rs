@@ -260,39 +260,19 @@ fn pulled(d: &Arc<Discretization>, p: &Params, strain: f64) -> hill_muscle::fe::
     last.unwrap()
 }
 
-/// Whether element `e` has a node on the rim of an end face (the outer ring
-/// of the face's disc), where the clamped face meets the free surface.
-fn at_a_rim(d: &Discretization, e: usize) -> bool {
-    let rim = |face: &[usize]| {
-        let r_max = face
-            .iter()
-            .map(|&a| d.mesh.disc[a].norm())
-            .fold(0.0, f64::max);
-        face.iter()
-            .copied()
-            .filter(|&a| d.mesh.disc[a].norm() >= 0.999 * r_max)
-            .collect::<Vec<usize>>()
-    };
-    let rims: Vec<usize> = rim(&d.mesh.fixed_face)
-        .into_iter()
-        .chain(rim(&d.mesh.moved_face))
-        .collect();
-    d.mesh.tets[e].iter().any(|a| rims.contains(a))
-}
-
-/// Issue 3 verification item 3, at 20 % strain with D = 1e-9 on the default
-/// mesh: the volume the formulation constrains (each element's mean nodal
-/// volume ratio J) is within 1e-3 of 1 in every element away from the end
-/// faces' rims, and the whole specimen's volume within 1e-4. At the rims —
-/// where a clamped face meets the free surface at about 105° — the
-/// nearly incompressible solution has a corner singularity: the pressure
-/// p = 2 (J − 1) / D grows without bound as the mesh resolves the corner,
-/// so no pointwise bound on J − 1 can hold there under refinement. The test
+/// Issue 3 verification item 3, at 20 % strain with D = 1e-9: the volume
+/// the formulation constrains (each element's mean nodal volume ratio J) is
+/// within 1e-3 of 1 in every element whose centroid lies more than 1 mm from
+/// the end faces' rims, and in every element not touching a rim on these
+/// meshes; the elements where it is not are under 0.1 % of the volume, and
+/// the whole specimen's volume is within 1e-4. At the rims — where a clamped
+/// face meets the free surface at about 105° — the nearly incompressible
+/// solution has a corner singularity (p = 2 (J − 1) / D ∝ r^−0.45, docs/fe.md),
+/// so no pointwise bound on J − 1 holds there under refinement. The test
 /// shows that: the largest rim deviation grows from the 12 × 2 to the
-/// 16 × 3 (default) to the 24 × 4 mesh, while the interior bound holds on
-/// each.
+/// 16 × 3 (default) to the 24 × 4 mesh, while the bounds above hold on each.
 #[test]
-fn volume_is_conserved_away_from_the_clamped_rims_where_the_pressure_is_singular() {
+fn volume_is_conserved_except_at_the_clamped_rims_where_the_pressure_is_singular() {
     let p = Params::default();
     let mut rim_max = Vec::new();
     for res in [
@@ -308,26 +288,29 @@ fn volume_is_conserved_away_from_the_clamped_rims_where_the_pressure_is_singular
     ] {
         let d = graded(res, LUMPED_AXIAL_GRADING, Volumetric::NodalAverage);
         let ev = pulled(&d, &p, 0.20);
-        let (mut interior, mut rim) = (0.0f64, 0.0f64);
-        for (e, el) in ev.elements.iter().enumerate() {
-            let dev = (el.j_assumed - 1.0).abs();
-            if at_a_rim(&d, e) {
-                rim = rim.max(dev);
-            } else {
-                interior = interior.max(dev);
-            }
-        }
+        let v = d.volume_ratio_spread(&ev, 1e-3, 1e-3);
         let whole = (ev.volume / d.reference_volume() - 1.0).abs();
         eprintln!(
-            "{}x{}: max |J - 1| away from the rims {interior:.3e}, at the rims {rim:.3e}, whole volume {whole:.2e}",
+            "{}x{}: {v:?}, whole volume {whole:.2e}",
             res.n_axial, res.n_radial
         );
         assert!(
-            interior < 1e-3,
-            "{res:?}: |J - 1| = {interior:e} away from the rims"
+            v.beyond < 1e-3,
+            "{res:?}: |J - 1| = {:e} more than 1 mm from the rims",
+            v.beyond
+        );
+        assert!(
+            v.elsewhere < 1e-3,
+            "{res:?}: |J - 1| = {:e} in an element not touching a rim",
+            v.elsewhere
+        );
+        assert!(
+            v.share_over < 1e-3,
+            "{res:?}: |J - 1| > 1e-3 in {:e} of the volume",
+            v.share_over
         );
         assert!(whole < 1e-4, "{res:?}: |V/V0 - 1| = {whole:e}");
-        rim_max.push(rim);
+        rim_max.push(v.touching_a_rim);
     }
     assert!(
         rim_max.windows(2).all(|w| w[1] > w[0]),

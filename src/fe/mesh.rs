@@ -595,6 +595,47 @@ impl Mesh {
         self.element_volumes().iter().sum()
     }
 
+    /// Per tetrahedron, whether it has a node on the rim of an end face: the
+    /// outer ring of the face's disc, where the clamped face meets the free
+    /// surface (the corner at which the nearly incompressible pressure
+    /// concentrates; docs/fe.md, verification item 3).
+    pub fn at_an_end_rim(&self) -> Vec<bool> {
+        let r_max = self.disc.iter().map(|eta| eta.norm()).fold(0.0, f64::max);
+        let mut rim = vec![false; self.nodes.len()];
+        for &a in self.fixed_face.iter().chain(&self.moved_face) {
+            rim[a] = self.disc[a].norm() >= 0.999 * r_max;
+        }
+        self.tets
+            .iter()
+            .map(|t| t.iter().any(|&a| rim[a]))
+            .collect()
+    }
+
+    /// Per tetrahedron, the distance of its centroid from the nearer end-face
+    /// rim (the circle through the face's outermost nodes), in the reference
+    /// configuration: where a bound on a field that is singular at the rims
+    /// can hold under refinement, it holds beyond a fixed distance from them.
+    pub fn end_rim_distances(&self) -> Vec<f64> {
+        let circle = |face: &[usize]| {
+            let x = face.iter().map(|&a| self.nodes[a].x).sum::<f64>() / face.len() as f64;
+            let r = face
+                .iter()
+                .map(|&a| self.nodes[a].yz().norm())
+                .fold(0.0, f64::max);
+            (x, r)
+        };
+        let rims = [circle(&self.fixed_face), circle(&self.moved_face)];
+        (0..self.tets.len())
+            .map(|e| {
+                let c = self.tet_points(e).iter().sum::<Vector3<f64>>() / 4.0;
+                let rho = c.yz().norm();
+                rims.iter()
+                    .map(|&(x, r)| (c.x - x).hypot(rho - r))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect()
+    }
+
     /// Smallest and largest radius ratio ([`tet_radius_ratio`]) over the elements.
     pub fn radius_ratio_range(&self) -> (f64, f64) {
         (0..self.tets.len())
@@ -654,6 +695,37 @@ mod tests {
 
     fn rate(coarse: f64, fine: f64) -> f64 {
         (coarse / fine).log2()
+    }
+
+    /// The rim classification and distances agree with the geometry: an
+    /// element touching a rim lies within its own size of it, the element
+    /// nearest a rim touches one, and the axis elements at mid-length lie
+    /// about √((L/2)² + R²) away (a cylinder, radius R, length L).
+    #[test]
+    fn end_rim_distances_follow_the_geometry() {
+        let (length, radius) = (0.05, 0.01);
+        let m = cylinder(length, radius, 8, 2);
+        let touching = m.at_an_end_rim();
+        let distances = m.end_rim_distances();
+        assert!(touching.iter().any(|&t| t) && !touching.iter().all(|&t| t));
+        for (e, (&t, &d)) in touching.iter().zip(&distances).enumerate() {
+            let p = m.tet_points(e);
+            let size = (0..4)
+                .flat_map(|i| (0..4).map(move |j| (i, j)))
+                .map(|(i, j)| (p[i] - p[j]).norm())
+                .fold(0.0, f64::max);
+            assert!(d >= 0.0 && d <= (0.5 * length).hypot(radius));
+            if t {
+                assert!(d < size, "element {e} touches a rim at distance {d} > {size}");
+            }
+        }
+        let nearest = (0..distances.len())
+            .min_by(|&a, &b| distances[a].total_cmp(&distances[b]))
+            .unwrap();
+        assert!(touching[nearest]);
+        let farthest = distances.iter().cloned().fold(0.0, f64::max);
+        let expected = (0.5 * length).hypot(radius);
+        assert!(farthest > 0.9 * expected, "{farthest} vs {expected}");
     }
 
     /// Composite Simpson on [0, L] with `n` (even) intervals.

@@ -719,6 +719,55 @@ impl Discretization {
     pub fn mean_area(&self) -> f64 {
         self.mean_area
     }
+
+    /// Where the element volume ratios of `ev` (each element's mean nodal J,
+    /// [`ElementState::j_assumed`]) depart from 1, split by the elements'
+    /// place relative to the end faces' rims, where a clamped face meets the
+    /// free surface and the pressure is singular (docs/fe.md, verification
+    /// item 3): `distance` is the distance from the rims beyond which
+    /// [`VolumeRatioSpread::beyond`] is taken, `threshold` the deviation whose
+    /// volume share [`VolumeRatioSpread::share_over`] counts.
+    pub fn volume_ratio_spread(
+        &self,
+        ev: &Evaluation,
+        distance: f64,
+        threshold: f64,
+    ) -> VolumeRatioSpread {
+        let volumes = self.mesh.element_volumes();
+        let distances = self.mesh.end_rim_distances();
+        let mut spread = VolumeRatioSpread::default();
+        let mut over = 0.0;
+        for (e, at_rim) in self.mesh.at_an_end_rim().into_iter().enumerate() {
+            let dev = (ev.elements[e].j_assumed - 1.0).abs();
+            if at_rim {
+                spread.touching_a_rim = spread.touching_a_rim.max(dev);
+            } else {
+                spread.elsewhere = spread.elsewhere.max(dev);
+            }
+            if distances[e] > distance {
+                spread.beyond = spread.beyond.max(dev);
+            }
+            if dev > threshold {
+                over += volumes[e];
+            }
+        }
+        spread.share_over = over / volumes.iter().sum::<f64>();
+        spread
+    }
+}
+
+/// Largest |J − 1| of the element volume ratios by region, and the volume
+/// share above a threshold ([`Discretization::volume_ratio_spread`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VolumeRatioSpread {
+    /// In the elements with a node on an end face's rim.
+    pub touching_a_rim: f64,
+    /// In all other elements.
+    pub elsewhere: f64,
+    /// In the elements whose centroid lies beyond the given distance from the rims.
+    pub beyond: f64,
+    /// Share of the reference volume whose elements deviate by more than the threshold.
+    pub share_over: f64,
 }
 
 /// What an evaluation keeps per element for outputs and commits.
