@@ -22,7 +22,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use hill_muscle::fe::assembly::FactorKind;
-use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_AXIAL_GRADING};
+use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
 use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
@@ -43,7 +43,7 @@ fn main() {
             L0,
             MEAN_AREA,
             LUMPED,
-            LUMPED_AXIAL_GRADING,
+            LUMPED_GRADING,
             FibreLayout::Axial,
             Ends::Clamped,
         )
@@ -52,7 +52,7 @@ fn main() {
     let (rest, _) = Muscle::isometric(d.clone(), &p, L0, 0.0).unwrap();
     let start = vec![FibreHistory::REST; d.n_elements()];
     println!(
-        "Default mesh {}×{} graded {LUMPED_AXIAL_GRADING} ({} tetrahedra, {} dofs), passive equilibrium at L0, level 0.5; median of 21",
+        "Default mesh {}×{} graded {LUMPED_GRADING:?} ({} tetrahedra, {} dofs), passive equilibrium at L0, level 0.5; median of 21",
         LUMPED.n_axial,
         LUMPED.n_radial,
         d.n_elements(),

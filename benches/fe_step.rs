@@ -26,7 +26,7 @@ use std::ffi::c_uint;
 use std::sync::Arc;
 use std::time::Instant;
 
-use hill_muscle::fe::mesh::{FibreLayout, Resolution, LUMPED, LUMPED_AXIAL_GRADING};
+use hill_muscle::fe::mesh::{FibreLayout, Resolution, LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
 use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::Model;
@@ -123,7 +123,7 @@ fn mesh_row(res: Resolution) {
             L0,
             MEAN_AREA,
             res,
-            LUMPED_AXIAL_GRADING,
+            LUMPED_GRADING,
             FibreLayout::Axial,
             Ends::Clamped,
         )
@@ -211,7 +211,7 @@ fn main() {
     // Part 1: the FMU through its C ABI, default mesh.
     let api = load("HillMuscleFE");
     println!(
-        "HillMuscleFE through the C ABI (SetReal + DoStep + GetReal), default mesh {}×{} graded {LUMPED_AXIAL_GRADING}, h = {H} s; median of {repeats} runs",
+        "HillMuscleFE through the C ABI (SetReal + DoStep + GetReal), default mesh {}×{} graded {LUMPED_GRADING:?}, h = {H} s; median of {repeats} runs",
         LUMPED.n_axial, LUMPED.n_radial
     );
     println!("| workload | steps | median ms/step | mean ms/step | p90 ms/step | max ms/step | stress at the end (kPa) |");

@@ -1,8 +1,10 @@
 //! Passive stress at 20 % strain per mesh (issue 3, verification item 2):
-//! `cargo run --release --example fe_locking [-- [--plain] [--grading β] n_axial:n_radial ...]`.
+//! `cargo run --release --example fe_locking [-- [--plain] [--grading β] [--radial-grading g] n_axial:n_radial ...]`.
 //!
 //! `--grading β`: slices graded toward the clamped faces
 //! ([`hill_muscle::fe::mesh::graded_slice`]; default 0, uniform);
+//! `--radial-grading g`: rings graded toward the lateral surface
+//! ([`hill_muscle::fe::mesh::graded_ring`]; default 0, uniform);
 //! `--plain`: the plain displacement tetrahedron instead of the
 //! average-nodal-pressure element.
 //!
@@ -18,7 +20,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use hill_muscle::fe::mesh::{FibreLayout, Resolution};
+use hill_muscle::fe::mesh::{FibreLayout, Grading, Resolution};
 use hill_muscle::fe::muscle::{Discretization, Ends, Muscle, Volumetric};
 use hill_muscle::law::Params;
 
@@ -26,10 +28,15 @@ fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let plain = args.iter().any(|a| a == "--plain");
     args.retain(|a| a != "--plain");
-    let mut grading = 0.0;
-    if let Some(i) = args.iter().position(|a| a == "--grading") {
-        grading = args[i + 1].parse().expect("--grading β");
-        args.drain(i..i + 2);
+    let mut grading = Grading::UNIFORM;
+    for (flag, value) in [
+        ("--grading", &mut grading.axial),
+        ("--radial-grading", &mut grading.radial),
+    ] {
+        if let Some(i) = args.iter().position(|a| a == flag) {
+            *value = args[i + 1].parse().expect("a grading in [0, 0.95]");
+            args.drain(i..i + 2);
+        }
     }
     let levels: Vec<(usize, usize)> = if args.is_empty() {
         vec![(12, 2), (18, 3), (24, 4)]
@@ -44,8 +51,10 @@ fn main() {
     let p = Params::default();
     let (l0, area) = (0.05, hill_muscle::specimen::MEAN_AREA);
     println!(
-        "{} element, axial grading {grading}",
-        if plain { "plain" } else { "nodal-pressure" }
+        "{} element, axial grading {}, radial grading {}",
+        if plain { "plain" } else { "nodal-pressure" },
+        grading.axial,
+        grading.radial
     );
     println!(
         "| mesh | tets | stress at 20 % (kPa) | max \\|J − 1\\|: touching a rim | elsewhere | beyond 1 mm of the rims | volume share with \\|J − 1\\| > 1e-3 | s |"

@@ -21,8 +21,9 @@
 //!   range ([`Fe::INTEGER_SPAN`]); the special-value test sets every Integer
 //!   variable to i32::MIN, −1, 0, 1, 2 and both ends of its range ±1, but
 //!   not to in-range values above 2 (a 96 × 16 mesh costs seconds per
-//!   initialization). `axial_grading` is one more Real parameter (in the
-//!   special-value test and the bound tests like the others).
+//!   initialization). `axial_grading` and `radial_grading` are Real
+//!   parameters (in the special-value test and the bound tests like the
+//!   others).
 //! - **Cost**: a new instance (and every `fmi2Reset`) builds and solves the
 //!   default 16 × 3 mesh (2,592 tetrahedra, ~20 ms here), and a step on it
 //!   costs ~1 ms or more. So the `Init` macro sets the smallest mesh, 1 × 1,
@@ -82,7 +83,7 @@
 //! CI mode (the default, a release build): 200 random sequences for the
 //! main property plus 50 corrupt-state and 50 instantiation cases, and the
 //! deterministic tests: the every-function and special-value tests with one
-//! sequence per state (7 each; the special-value sequences set all 33 Real
+//! sequence per state (7 each; the special-value sequences set all 34 Real
 //! and 4 Integer variables, ~3,100 calls each, debug logging on in every
 //! other state), 4 × 25,000 drift steps, the reset and NULL tests from
 //! every state, 40 parameter-bound cases — ~350 sequences in all. Measured
@@ -353,7 +354,7 @@ fn a_state_without_a_muscle_is_refused() {
     };
     let (_, model) = split_state(&bytes).unwrap();
     // HillFE::serialize: the parameters, L0, area, activation_dynamics,
-    // initial_activation, n_axial, n_radial, axial_grading, fibre_layout,
+    // initial_activation, n_axial, n_radial, axial_grading, radial_grading, fibre_layout,
     // adaptive_substeps, substep_tolerance, command, length, the rates, the level, the decay, the outputs, the
     // Newton iterations; then the flag.
     let mut input = model;
@@ -366,6 +367,7 @@ fn a_state_without_a_muscle_is_refused() {
         r.f64()?;
         r.i32()?;
         r.i32()?;
+        r.f64()?;
         r.f64()?;
         r.i32()?;
         r.bool()?;

@@ -15,7 +15,7 @@
 
 use std::sync::Arc;
 
-use hill_muscle::fe::mesh::{FibreLayout, Resolution, LUMPED, LUMPED_AXIAL_GRADING};
+use hill_muscle::fe::mesh::{FibreLayout, Grading, Resolution, LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::muscle::{Discretization, Ends, Muscle, Volumetric};
 use hill_muscle::law::{FibreRate, Params};
 use hill_muscle::specimen::MEAN_AREA;
@@ -24,10 +24,14 @@ use nalgebra::{Rotation3, Vector3};
 const L0: f64 = 0.05;
 
 fn specimen(n_axial: usize, n_radial: usize, volumetric: Volumetric) -> Arc<Discretization> {
-    graded(Resolution { n_axial, n_radial }, 0.0, volumetric)
+    graded(
+        Resolution { n_axial, n_radial },
+        Grading::UNIFORM,
+        volumetric,
+    )
 }
 
-fn graded(res: Resolution, grading: f64, volumetric: Volumetric) -> Arc<Discretization> {
+fn graded(res: Resolution, grading: Grading, volumetric: Volumetric) -> Arc<Discretization> {
     Arc::new(
         Discretization::fusiform_graded(
             L0,
@@ -81,7 +85,7 @@ fn passive_stress_converges_under_refinement_and_the_default_is_within_3_percent
     let p = Params::default();
     let stress = |res| {
         pulled_stress(
-            &graded(res, LUMPED_AXIAL_GRADING, Volumetric::NodalAverage),
+            &graded(res, LUMPED_GRADING, Volumetric::NodalAverage),
             &p,
             0.0,
             0.20,
@@ -123,7 +127,7 @@ fn plain_tetrahedra_are_far_stiffer_on_the_same_mesh() {
         n_axial: 12,
         n_radial: 2,
     };
-    let (anp, plain) = pair(uniform, 0.0);
+    let (anp, plain) = pair(uniform, Grading::UNIFORM);
     assert!(
         anp > 150e3 && anp < 450e3,
         "nodal-pressure element: {anp} Pa"
@@ -132,7 +136,7 @@ fn plain_tetrahedra_are_far_stiffer_on_the_same_mesh() {
         plain > 4.0 * anp,
         "12 × 2: plain {plain} Pa vs nodal-pressure {anp} Pa"
     );
-    let (anp, plain) = pair(LUMPED, LUMPED_AXIAL_GRADING);
+    let (anp, plain) = pair(LUMPED, LUMPED_GRADING);
     assert!(
         plain > 1.3 * anp,
         "default: plain {plain} Pa vs nodal-pressure {anp} Pa"
@@ -286,7 +290,7 @@ fn volume_is_conserved_except_at_the_clamped_rims_where_the_pressure_is_singular
             n_radial: 4,
         },
     ] {
-        let d = graded(res, LUMPED_AXIAL_GRADING, Volumetric::NodalAverage);
+        let d = graded(res, LUMPED_GRADING, Volumetric::NodalAverage);
         let ev = pulled(&d, &p, 0.20);
         let v = d.volume_ratio_spread(&ev, 1e-3, 1e-3);
         let whole = (ev.volume / d.reference_volume() - 1.0).abs();

@@ -186,10 +186,10 @@ fn the_actuator_declares_stiffness_in_newton_per_metre() {
         .any(|u| u.name == "N/m" && u.kg == 1 && u.s == -2));
     assert!(!Hill1D::info().units.iter().any(|u| u.name == "N/m"));
     // The GUIDs of the two full FMUs since the `length` input declares its
-    // own range (LENGTH_RANGE, [1e-5, 100] m, in place of L0's): a new
-    // interface, a new GUID. Pinned so that an unintended interface change
-    // shows here.
+    // own range (LENGTH_RANGE, [1e-5, 100] m, in place of L0's) and, for
+    // HillMuscleFE, since the `radial_grading` parameter: a new interface, a
+    // new GUID. Pinned so that an unintended interface change shows here.
     assert_eq!(guid::<Hill1D>(), "{7c808cb6-7bd7-8378-be77-25860ec4a448}");
     #[cfg(feature = "fe")]
-    assert_eq!(guid::<HillFE>(), "{23e0a860-6d93-8d7e-877d-f67d59cb0c8c}");
+    assert_eq!(guid::<HillFE>(), "{ad976ecb-b2d0-84a6-8caa-6e7d27f5a9f8}");
 }

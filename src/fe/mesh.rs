@@ -270,14 +270,53 @@ impl Resolution {
 }
 
 /// The small default ("lumped") mesh of the FE muscle: 16 × 3, 2,592
-/// tetrahedra, with slices graded by [`LUMPED_AXIAL_GRADING`] toward the
-/// clamped faces (the convergence study of docs/fe.md chose both).
+/// tetrahedra, graded by [`LUMPED_GRADING`] toward the clamped faces' rims
+/// (the convergence study of docs/fe.md chose both).
 pub const LUMPED: Resolution = Resolution {
     n_axial: 16,
     n_radial: 3,
 };
-/// The axial grading of the lumped mesh ([`graded_slice`]).
-pub const LUMPED_AXIAL_GRADING: f64 = 0.9;
+/// The grading of the lumped mesh ([`graded_slice`], [`graded_ring`]).
+pub const LUMPED_GRADING: Grading = Grading {
+    axial: 0.9,
+    radial: 0.0,
+};
+
+/// How a mesh's element layers are graded: the slices toward the end faces
+/// ([`graded_slice`], `axial`) and the rings of the cross-section toward the
+/// lateral surface ([`graded_ring`], `radial`), each in [0, 0.95]; together
+/// they put the small elements at the end faces' rims, where the clamped
+/// specimen's pressure is singular (docs/fe.md, verification item 3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grading {
+    /// Axial grading β: the end layers are (1 − β) times the uniform spacing.
+    pub axial: f64,
+    /// Radial grading g: the outer ring is about (1 − g) times the uniform width.
+    pub radial: f64,
+}
+
+impl Grading {
+    /// Uniform slices and rings.
+    pub const UNIFORM: Grading = Grading {
+        axial: 0.0,
+        radial: 0.0,
+    };
+
+    /// Slices graded by `axial`, uniform rings.
+    pub const fn axial(axial: f64) -> Grading {
+        Grading { axial, radial: 0.0 }
+    }
+
+    /// Both gradings in [0, [`MAX_GRADING`]], or a message naming the one that is not.
+    pub fn check(&self) -> Result<(), String> {
+        for (name, g) in [("axial", self.axial), ("radial", self.radial)] {
+            if !(0.0..=MAX_GRADING).contains(&g) {
+                return Err(format!("{name} grading {g} outside [0, {MAX_GRADING}]"));
+            }
+        }
+        Ok(())
+    }
+}
 
 /// Refinement levels, n_axial = 6 n_radial (864, 2,916, 6,912, 23,328, 55,296
 /// tetrahedra); levels 0, 2, 4 halve the element size twice. See the module
@@ -310,6 +349,12 @@ pub const LEVELS: [Resolution; 5] = [
 /// in the (y, z) plane. Point (i, k) (ring i, k-th point, angle 2πk / 6i) has
 /// index 1 + 3 i (i − 1) + k; the centre is 0.
 pub fn unit_disc(n_radial: usize) -> (Vec<Vector2<f64>>, Vec<[usize; 3]>) {
+    unit_disc_graded(n_radial, 0.0)
+}
+
+/// [`unit_disc`] with ring i at radius [`graded_ring`]`(i, n_radial, grading)`
+/// instead of i / n_radial (the same points on each ring, the same triangles).
+pub fn unit_disc_graded(n_radial: usize, grading: f64) -> (Vec<Vector2<f64>>, Vec<[usize; 3]>) {
     assert!(n_radial >= 1, "n_radial must be at least 1");
     let ring_start = |i: usize| if i == 0 { 0 } else { 1 + 3 * i * (i - 1) };
     let ring_len = |i: usize| if i == 0 { 1 } else { 6 * i };
@@ -318,7 +363,7 @@ pub fn unit_disc(n_radial: usize) -> (Vec<Vector2<f64>>, Vec<[usize; 3]>) {
     let mut points = Vec::with_capacity(1 + 3 * n_radial * (n_radial + 1));
     points.push(Vector2::zeros());
     for i in 1..=n_radial {
-        let rho = i as f64 / n_radial as f64;
+        let rho = graded_ring(i, n_radial, grading);
         for k in 0..6 * i {
             let theta = 2.0 * PI * k as f64 / (6 * i) as f64;
             points.push(Vector2::new(rho * theta.cos(), rho * theta.sin()));
@@ -365,8 +410,8 @@ pub struct Mesh {
     pub resolution: Resolution,
     /// How the cross-section polygon approximates the circle.
     pub section: Section,
-    /// Axial grading β of the slices ([`graded_slice`]; 0: uniform).
-    pub axial_grading: f64,
+    /// Grading of the slices and rings ([`Grading`]).
+    pub grading: Grading,
     /// Unit-disc coordinates η of each node (node = (x, r(x) η)).
     pub disc: Vec<Vector2<f64>>,
 }
@@ -395,9 +440,9 @@ pub fn revolve<P: Profile + ?Sized>(
     revolve_with(profile, resolution, fibres, Section::Inscribed)
 }
 
-/// Largest axial grading [`graded_slice`] accepts (end layers 1/20 of the
-/// uniform spacing).
-pub const MAX_AXIAL_GRADING: f64 = 0.95;
+/// Largest grading [`graded_slice`] and [`graded_ring`] accept (end layers
+/// 1/20 of the uniform spacing).
+pub const MAX_GRADING: f64 = 0.95;
 
 /// Position of slice s of n on [0, L] with axial grading β ∈ [0, 1):
 /// x = L (u − β sin(2πu)/(2π)), u = s/n. The spacing dx/du = L (1 − β cos 2πu)
@@ -405,8 +450,8 @@ pub const MAX_AXIAL_GRADING: f64 = 0.95;
 /// (1 − β) times, those in the middle (1 + β) times the uniform spacing.
 /// Why: with the end faces clamped, the nearly incompressible specimen has a
 /// boundary layer at each of them where the error of the linear tetrahedra
-/// sits (docs/fe.md, the convergence study: refining axially cuts the error,
-/// radially barely), so grading puts the layers where they pay.
+/// sits (docs/fe.md, the convergence study: on uniform slices refining axially
+/// cuts the error, radially barely), so grading puts the layers where they pay.
 pub fn graded_slice(s: usize, n: usize, length: f64, grading: f64) -> f64 {
     if s == n {
         return length;
@@ -416,6 +461,21 @@ pub fn graded_slice(s: usize, n: usize, length: f64, grading: f64) -> f64 {
     length * (u - grading * (two_pi * u).sin() / two_pi)
 }
 
+/// Radius of ring i of n of the unit disc with radial grading g ∈ [0, 1):
+/// ρ = u + g u (1 − u), u = i/n. The spacing dρ/du = 1 + g (1 − 2u) is
+/// positive: 1 − g at the lateral surface, 1 + g at the axis. Why: once the
+/// slices are graded toward the end faces, what is left of the force's
+/// discretization error sits at the faces' rims, where the clamped face meets
+/// the free surface (docs/fe.md, the convergence study and item 3), so the
+/// rings are graded toward the surface too.
+pub fn graded_ring(i: usize, n: usize, grading: f64) -> f64 {
+    if i == n {
+        return 1.0;
+    }
+    let u = i as f64 / n as f64;
+    u + grading * u * (1.0 - u)
+}
+
 /// [`revolve_graded`] with uniform slices.
 pub fn revolve_with<P: Profile + ?Sized>(
     profile: &P,
@@ -423,30 +483,30 @@ pub fn revolve_with<P: Profile + ?Sized>(
     fibres: FibreLayout,
     section: Section,
 ) -> Mesh {
-    revolve_graded(profile, resolution, fibres, section, 0.0)
+    revolve_graded(profile, resolution, fibres, section, Grading::UNIFORM)
 }
 
-/// Mesh the solid of revolution of `profile`: the [`unit_disc`] scaled by
+/// Mesh the solid of revolution of `profile`: the unit disc with its rings
+/// graded by `grading.radial` ([`unit_disc_graded`]) scaled by
 /// `section.scale(n_radial)` · r(x_s) on each slice x_s ([`graded_slice`]
-/// with grading `axial_grading`), each prism split into three positively
+/// with grading `grading.axial`), each prism split into three positively
 /// oriented tetrahedra by the sorted-index rule (see the module
 /// documentation).
 ///
 /// # Panics
 /// If a resolution is zero, the length is not positive and finite, r is not
-/// positive and finite on a slice, or the grading is outside
-/// [0, [`MAX_AXIAL_GRADING`]].
+/// positive and finite on a slice, or a grading is outside
+/// [0, [`MAX_GRADING`]].
 pub fn revolve_graded<P: Profile + ?Sized>(
     profile: &P,
     resolution: Resolution,
     fibres: FibreLayout,
     section: Section,
-    axial_grading: f64,
+    grading: Grading,
 ) -> Mesh {
-    assert!(
-        (0.0..=MAX_AXIAL_GRADING).contains(&axial_grading),
-        "axial grading must be in [0, {MAX_AXIAL_GRADING}], got {axial_grading}"
-    );
+    if let Err(e) = grading.check() {
+        panic!("{e}");
+    }
     let Resolution { n_axial, n_radial } = resolution;
     assert!(n_axial >= 1, "n_axial must be at least 1");
     let length = profile.length();
@@ -454,11 +514,11 @@ pub fn revolve_graded<P: Profile + ?Sized>(
         length.is_finite() && length > 0.0,
         "length must be positive, got {length}"
     );
-    let (disc_points, triangles) = unit_disc(n_radial);
+    let (disc_points, triangles) = unit_disc_graded(n_radial, grading.radial);
     let nps = disc_points.len();
     let k = section.scale(n_radial);
 
-    let slice_x = |s: usize| graded_slice(s, n_axial, length, axial_grading);
+    let slice_x = |s: usize| graded_slice(s, n_axial, length, grading.axial);
     let mut nodes = Vec::with_capacity((n_axial + 1) * nps);
     let mut disc = Vec::with_capacity((n_axial + 1) * nps);
     for s in 0..=n_axial {
@@ -526,7 +586,7 @@ pub fn revolve_graded<P: Profile + ?Sized>(
         length,
         resolution,
         section,
-        axial_grading,
+        grading,
         disc,
     }
 }
@@ -716,7 +776,10 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(d >= 0.0 && d <= (0.5 * length).hypot(radius));
             if t {
-                assert!(d < size, "element {e} touches a rim at distance {d} > {size}");
+                assert!(
+                    d < size,
+                    "element {e} touches a rim at distance {d} > {size}"
+                );
             }
         }
         let nearest = (0..distances.len())
@@ -865,7 +928,7 @@ mod tests {
     #[test]
     fn graded_slices_are_monotone_symmetric_and_thin_at_the_ends() {
         let (n, l) = (12, 0.05);
-        for beta in [0.0, 0.5, 0.85, MAX_AXIAL_GRADING] {
+        for beta in [0.0, 0.5, 0.85, MAX_GRADING] {
             let x: Vec<f64> = (0..=n).map(|s| graded_slice(s, n, l, beta)).collect();
             assert_eq!((x[0], x[n]), (0.0, l));
             assert!(x.windows(2).all(|w| w[1] > w[0]), "β {beta}: {x:?}");
@@ -889,6 +952,32 @@ mod tests {
                 "β {beta}: middle {middle}"
             );
         }
+        // Rings: from the axis to the surface, increasing; the spacing
+        // 1 + g (1 − 2u) in between; the disc's points on their rings.
+        for g in [0.0, 0.5, 0.8, MAX_GRADING] {
+            for n in [1, 3, 8] {
+                let rho: Vec<f64> = (0..=n).map(|i| graded_ring(i, n, g)).collect();
+                assert_eq!((rho[0], rho[n]), (0.0, 1.0));
+                assert!(rho.windows(2).all(|w| w[1] > w[0]), "g {g}: {rho:?}");
+                for i in 0..n {
+                    let (u0, u1) = (i as f64 / n as f64, (i + 1) as f64 / n as f64);
+                    let mean_spacing = 1.0 + g * (1.0 - (u0 + u1));
+                    let width = (rho[i + 1] - rho[i]) * n as f64;
+                    assert!(
+                        (width - mean_spacing).abs() < 1e-14,
+                        "g {g}, ring {i}: {width}"
+                    );
+                }
+                let (points, triangles) = unit_disc_graded(n, g);
+                assert_eq!(triangles, unit_disc(n).1);
+                for i in 1..=n {
+                    let first = 1 + 3 * i * (i - 1);
+                    for p in &points[first..first + 6 * i] {
+                        assert!((p.norm() - rho[i]).abs() < 1e-15);
+                    }
+                }
+            }
+        }
         // The graded default mesh: every tetrahedron positive, volume as the
         // uniform mesh's to the profile's discretization error.
         let res = Resolution {
@@ -906,12 +995,28 @@ mod tests {
             res,
             FibreLayout::Axial,
             Section::EqualArea,
-            0.85,
+            Grading::axial(0.85),
         );
         assert!(graded.element_volumes().iter().all(|&v| v > 0.0));
         let exact = Fusiform::PAPER.volume();
         assert!(((graded.volume() - exact) / exact).abs() < 0.02);
         assert!(((uniform.volume() - exact) / exact).abs() < 0.02);
+        // Grading the rings moves no point of a slice's outer polygon, so the
+        // volume is the same.
+        for radial in [0.5, MAX_GRADING] {
+            let both = revolve_graded(
+                &Fusiform::PAPER,
+                res,
+                FibreLayout::Axial,
+                Section::EqualArea,
+                Grading {
+                    axial: 0.85,
+                    radial,
+                },
+            );
+            assert!(both.element_volumes().iter().all(|&v| v > 0.0));
+            assert!(((both.volume() - graded.volume()) / exact).abs() < 1e-14);
+        }
     }
 
     #[test]

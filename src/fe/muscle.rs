@@ -49,9 +49,7 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use crate::fe::assembly::{Factor, Pattern};
 use crate::fe::element::{nodal_volumes, IsochoricElement, TetReference};
-use crate::fe::mesh::{
-    revolve_graded, FibreLayout, Fusiform, Mesh, Resolution, Section, MAX_AXIAL_GRADING,
-};
+use crate::fe::mesh::{revolve_graded, FibreLayout, Fusiform, Grading, Mesh, Resolution, Section};
 pub use crate::fe::newton::{
     Budget, Increment, Solution, Solved, StepInput, TangentCache, Trend, RESIDUAL_TOLERANCE,
 };
@@ -138,24 +136,20 @@ impl Discretization {
         fibres: FibreLayout,
         ends: Ends,
     ) -> Result<Discretization, String> {
-        Self::fusiform_graded(l0, area, resolution, 0.0, fibres, ends)
+        Self::fusiform_graded(l0, area, resolution, Grading::UNIFORM, fibres, ends)
     }
 
     /// [`Discretization::fusiform`] with the slices graded toward the end
-    /// faces ([`crate::fe::mesh::graded_slice`], grading β).
+    /// faces and the rings toward the lateral surface ([`Grading`]).
     pub fn fusiform_graded(
         l0: f64,
         area: f64,
         resolution: Resolution,
-        axial_grading: f64,
+        grading: Grading,
         fibres: FibreLayout,
         ends: Ends,
     ) -> Result<Discretization, String> {
-        if !(0.0..=MAX_AXIAL_GRADING).contains(&axial_grading) {
-            return Err(format!(
-                "axial grading {axial_grading} outside [0, {MAX_AXIAL_GRADING}]"
-            ));
-        }
+        grading.check()?;
         let radial = (area / crate::specimen::MEAN_AREA).sqrt();
         let profile = Fusiform {
             length: l0,
@@ -163,13 +157,7 @@ impl Discretization {
             r_mid: crate::specimen::MID_RADIUS * radial,
         };
         let mut d = Discretization::new(
-            revolve_graded(
-                &profile,
-                resolution,
-                fibres,
-                Section::EqualArea,
-                axial_grading,
-            ),
+            revolve_graded(&profile, resolution, fibres, Section::EqualArea, grading),
             ends,
         )?;
         d.area = area;

@@ -980,7 +980,7 @@ fn max_abs(v: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fe::mesh::{FibreLayout, Resolution};
+    use crate::fe::mesh::{FibreLayout, Grading, Resolution};
     use crate::fe::muscle::{Ends, Muscle};
 
     fn specimen(n_axial: usize, n_radial: usize) -> Arc<Discretization> {
@@ -989,7 +989,7 @@ mod tests {
                 0.05,
                 crate::specimen::MEAN_AREA,
                 Resolution { n_axial, n_radial },
-                0.9,
+                Grading::axial(0.9),
                 FibreLayout::Axial,
                 Ends::Clamped,
             )

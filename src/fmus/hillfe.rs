@@ -31,7 +31,7 @@
 
 use std::sync::{Arc, OnceLock};
 
-use crate::fe::mesh::{FibreLayout, Resolution};
+use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::muscle::{Discretization, Ends, Evaluation, Muscle, Solution, MAX_SUBSTEPS};
 use crate::fe::newton::{
     Anchor, Contraction, Increment, TangentCache, Trend, CONTRACTION_STEPS, TREND_LENGTH,
@@ -60,17 +60,17 @@ pub const DEFAULT_AREA: f64 = crate::specimen::MEAN_AREA;
 /// Mesh resolution limits (the finest verification level is 48 × 8).
 const N_AXIAL_RANGE: (i32, i32) = (1, 96);
 const N_RADIAL_RANGE: (i32, i32) = (1, 16);
-/// The default ("lumped") mesh and its axial grading toward the clamped
-/// faces, chosen by the convergence study of docs/fe.md: 16 × 3 (2,592
-/// tetrahedra) graded 0.9 gives the passive stress at 20 % strain within 3 %
-/// of the finest level computed (36 × 6, 23,328 tetrahedra).
+/// The default ("lumped") mesh and its grading toward the clamped faces'
+/// rims, chosen by the convergence study of docs/fe.md
+/// ([`crate::fe::mesh::LUMPED`], [`crate::fe::mesh::LUMPED_GRADING`]).
 pub const DEFAULT_MESH: Resolution = crate::fe::mesh::LUMPED;
 /// See [`DEFAULT_MESH`].
-pub const DEFAULT_AXIAL_GRADING: f64 = crate::fe::mesh::LUMPED_AXIAL_GRADING;
-/// Valid axial grading ([`crate::fe::mesh::graded_slice`]).
-const AXIAL_GRADING_RANGE: Range = Range {
+pub const DEFAULT_GRADING: Grading = crate::fe::mesh::LUMPED_GRADING;
+/// Valid axial and radial grading ([`crate::fe::mesh::graded_slice`],
+/// [`crate::fe::mesh::graded_ring`]).
+const GRADING_RANGE: Range = Range {
     min: 0.0,
-    max: crate::fe::mesh::MAX_AXIAL_GRADING,
+    max: crate::fe::mesh::MAX_GRADING,
 };
 
 /// A variable of `HillMuscleFE`.
@@ -86,6 +86,7 @@ pub enum Var {
     NAxial,
     NRadial,
     AxialGrading,
+    RadialGrading,
     FibreLayout,
     Activation,
     Length,
@@ -207,13 +208,13 @@ fn fe_discretization(
     l0: f64,
     area: f64,
     resolution: Resolution,
-    axial_grading: f64,
+    grading: Grading,
     fibres: FibreLayout,
 ) -> Result<Arc<Discretization>, ModelError> {
-    if let Some(d) = reuse.filter(|d| built_with(d, l0, area, resolution, axial_grading, fibres)) {
+    if let Some(d) = reuse.filter(|d| built_with(d, l0, area, resolution, grading, fibres)) {
         return Ok(d.clone());
     }
-    Discretization::fusiform_graded(l0, area, resolution, axial_grading, fibres, Ends::Clamped)
+    Discretization::fusiform_graded(l0, area, resolution, grading, fibres, Ends::Clamped)
         .map(Arc::new)
         .map_err(ModelError)
 }
@@ -225,13 +226,13 @@ fn built_with(
     l0: f64,
     area: f64,
     resolution: Resolution,
-    axial_grading: f64,
+    grading: Grading,
     fibres: FibreLayout,
 ) -> bool {
     d.l0 == l0
         && d.area == area
         && d.mesh.resolution == resolution
-        && d.mesh.axial_grading == axial_grading
+        && d.mesh.grading == grading
         && d.fibres == fibres
 }
 
@@ -385,6 +386,7 @@ pub struct HillFEModel<S: Scene> {
     n_axial: i32,
     n_radial: i32,
     axial_grading: f64,
+    radial_grading: f64,
     fibre_layout: i32,
     command: f64,
     length: Option<f64>,
@@ -411,6 +413,13 @@ impl<S: Scene> HillFEModel<S> {
         self.length.unwrap_or(self.l0)
     }
 
+    fn grading(&self) -> Grading {
+        Grading {
+            axial: self.axial_grading,
+            radial: self.radial_grading,
+        }
+    }
+
     fn layout(&self) -> FibreLayout {
         if self.fibre_layout == 1 {
             FibreLayout::Meridian
@@ -426,7 +435,8 @@ impl<S: Scene> HillFEModel<S> {
         check_range("L0", self.l0, L0_RANGE)?;
         check_range("area", self.area, AREA_RANGE)?;
         check_unit_interval("initial_activation", self.initial_activation)?;
-        check_range("axial_grading", self.axial_grading, AXIAL_GRADING_RANGE)?;
+        check_range("axial_grading", self.axial_grading, GRADING_RANGE)?;
+        check_range("radial_grading", self.radial_grading, GRADING_RANGE)?;
         check_range("length", self.length(), LENGTH_RANGE)?;
         Ok(())
     }
@@ -444,7 +454,7 @@ impl<S: Scene> HillFEModel<S> {
             self.l0,
             self.area,
             resolution,
-            self.axial_grading,
+            self.grading(),
             self.layout(),
         )
     }
@@ -664,7 +674,8 @@ impl<S: Scene> Model for HillFEModel<S> {
             substep_tolerance: SUBSTEP_RTOL,
             n_axial: DEFAULT_MESH.n_axial as i32,
             n_radial: DEFAULT_MESH.n_radial as i32,
-            axial_grading: DEFAULT_AXIAL_GRADING,
+            axial_grading: DEFAULT_GRADING.axial,
+            radial_grading: DEFAULT_GRADING.radial,
             fibre_layout: 0,
             command: 0.0,
             length: None,
@@ -705,6 +716,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             Var::InitialActivation => self.initial_activation,
             Var::SubstepTolerance => self.substep_tolerance,
             Var::AxialGrading => self.axial_grading,
+            Var::RadialGrading => self.radial_grading,
             Var::Activation => self.command,
             Var::Length => self.length(),
             Var::Out(o) => self.outputs[o as usize],
@@ -749,8 +761,12 @@ impl<S: Scene> Model for HillFEModel<S> {
                 self.initial_activation = value;
             }
             Var::AxialGrading => {
-                check_range("axial_grading", value, AXIAL_GRADING_RANGE)?;
+                check_range("axial_grading", value, GRADING_RANGE)?;
                 self.axial_grading = value;
+            }
+            Var::RadialGrading => {
+                check_range("radial_grading", value, GRADING_RANGE)?;
+                self.radial_grading = value;
             }
             Var::SubstepTolerance => {
                 check_range("substep_tolerance", value, SUBSTEP_TOLERANCE_RANGE)?;
@@ -969,7 +985,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                         n_axial: self.n_axial as usize,
                         n_radial: self.n_radial as usize,
                     },
-                    self.axial_grading,
+                    self.grading(),
                     self.layout(),
                 )
             })
@@ -989,6 +1005,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             .i32(self.n_axial)
             .i32(self.n_radial)
             .f64(self.axial_grading)
+            .f64(self.radial_grading)
             .i32(self.fibre_layout)
             .bool(self.adaptive_substeps)
             .f64(self.substep_tolerance)
@@ -1014,7 +1031,8 @@ impl<S: Scene> Model for HillFEModel<S> {
                     .f64(d.area)
                     .i32(d.mesh.resolution.n_axial as i32)
                     .i32(d.mesh.resolution.n_radial as i32)
-                    .f64(d.mesh.axial_grading)
+                    .f64(d.mesh.grading.axial)
+                    .f64(d.mesh.grading.radial)
                     .i32(match d.fibres {
                         FibreLayout::Axial => 0,
                         FibreLayout::Meridian => 1,
@@ -1105,7 +1123,8 @@ impl<S: Scene> Model for HillFEModel<S> {
             substep_tolerance: SUBSTEP_RTOL,
             n_axial: DEFAULT_MESH.n_axial as i32,
             n_radial: DEFAULT_MESH.n_radial as i32,
-            axial_grading: DEFAULT_AXIAL_GRADING,
+            axial_grading: DEFAULT_GRADING.axial,
+            radial_grading: DEFAULT_GRADING.radial,
             fibre_layout: 0,
             command: 0.0,
             length: None,
@@ -1136,9 +1155,10 @@ impl<S: Scene> Model for HillFEModel<S> {
             let v = r.i32()?;
             m.set_integer(var, v).map_err(|e| bad(e.0))?;
         }
-        let grading = r.f64()?;
-        m.set_real(Var::AxialGrading, grading)
-            .map_err(|e| bad(e.0))?;
+        for var in [Var::AxialGrading, Var::RadialGrading] {
+            let grading = r.f64()?;
+            m.set_real(var, grading).map_err(|e| bad(e.0))?;
+        }
         let layout = r.i32()?;
         m.set_integer(Var::FibreLayout, layout)
             .map_err(|e| bad(e.0))?;
@@ -1175,11 +1195,15 @@ impl<S: Scene> Model for HillFEModel<S> {
         if r.bool()? {
             let (l0, area) = (r.f64()?, r.f64()?);
             let (n_axial, n_radial) = (r.i32()?, r.i32()?);
-            let grading = r.f64()?;
+            let grading = Grading {
+                axial: r.f64()?,
+                radial: r.f64()?,
+            };
             let layout = r.i32()?;
             check_range("L0", l0, L0_RANGE).map_err(|e| bad(e.0))?;
             check_range("area", area, AREA_RANGE).map_err(|e| bad(e.0))?;
-            check_range("axial_grading", grading, AXIAL_GRADING_RANGE).map_err(|e| bad(e.0))?;
+            check_range("axial_grading", grading.axial, GRADING_RANGE).map_err(|e| bad(e.0))?;
+            check_range("radial_grading", grading.radial, GRADING_RANGE).map_err(|e| bad(e.0))?;
             let in_range = |v: i32, (lo, hi): (i32, i32)| (lo..=hi).contains(&v);
             if !(in_range(n_axial, N_AXIAL_RANGE)
                 && in_range(n_radial, N_RADIAL_RANGE)
@@ -1470,11 +1494,22 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
         "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
         real(
             "1",
-            Some(DEFAULT_AXIAL_GRADING),
-            Some(AXIAL_GRADING_RANGE.min),
-            Some(AXIAL_GRADING_RANGE.max),
+            Some(DEFAULT_GRADING.axial),
+            Some(GRADING_RANGE.min),
+            Some(GRADING_RANGE.max),
         ),
         Var::AxialGrading,
+    ));
+    v.push(parameter(
+        "radial_grading",
+        "Mesh: rings of the cross-section graded toward the lateral surface, radius u + g u (1 - u) of the section's radius, u = i / n_radial; outer ring about (1 - g) times the uniform width",
+        real(
+            "1",
+            Some(DEFAULT_GRADING.radial),
+            Some(GRADING_RANGE.min),
+            Some(GRADING_RANGE.max),
+        ),
+        Var::RadialGrading,
     ));
     v.push(parameter(
         "fibre_layout",
@@ -1514,6 +1549,7 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
         "n_axial",
         "n_radial",
         "axial_grading",
+        "radial_grading",
         "fibre_layout",
     ]);
     state_deps.extend(
@@ -1591,6 +1627,32 @@ central differences of its map.</p>
 mod tests {
     use super::*;
     use crate::fmus::common::{assert_restore_refuses, restored};
+
+    /// The scenes' mesh levels (src/scene, compiled without the FE code) are
+    /// the FE module's: `lumped` the default mesh and its grading, `level0`
+    /// … `level4` the refinement levels, ungraded.
+    #[test]
+    fn the_scene_mesh_levels_are_the_fe_meshes() {
+        let as_mesh = |l: &crate::scene::MeshLevel| {
+            (
+                Resolution {
+                    n_axial: l.n_axial as usize,
+                    n_radial: l.n_radial as usize,
+                },
+                Grading {
+                    axial: l.axial_grading,
+                    radial: l.radial_grading,
+                },
+            )
+        };
+        let levels = crate::scene::MESH_LEVELS;
+        assert_eq!(levels[0].name, "lumped");
+        assert_eq!(as_mesh(&levels[0]), (DEFAULT_MESH, DEFAULT_GRADING));
+        for (i, (level, res)) in levels[1..].iter().zip(crate::fe::mesh::LEVELS).enumerate() {
+            assert_eq!(level.name, format!("level{i}"));
+            assert_eq!(as_mesh(level), (res, Grading::UNIFORM));
+        }
+    }
 
     /// A 6 × 1 muscle at `stretch` L0 and activation level `level`, with or
     /// without `adaptive_substeps`.

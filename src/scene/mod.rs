@@ -263,24 +263,60 @@ pub struct Draft {
     pub constants: Vec<(String, Value)>,
     /// FE mesh level ([`MESH_LEVELS`]).
     pub mesh: Option<String>,
-    /// Whether the mesh (n_axial, n_radial, axial_grading) is compiled in
+    /// Whether the mesh (n_axial, n_radial, axial_grading, radial_grading) is compiled in
     /// rather than exposed (default: exposed).
     pub mesh_constant: Option<bool>,
     /// DefaultExperiment (start, stop, step size).
     pub default_experiment: Option<(f64, f64, f64)>,
 }
 
-/// The FE mesh levels a scene can name: `lumped` (the default 16 × 3 graded
-/// 0.9 of docs/fe.md) and the refinement levels `level0` … `level4`
-/// (`crate::fe::mesh::LEVELS`, ungraded): (name, n_axial, n_radial,
-/// axial_grading).
-pub const MESH_LEVELS: [(&str, i32, i32, f64); 6] = [
-    ("lumped", 16, 3, 0.9),
-    ("level0", 12, 2, 0.0),
-    ("level1", 18, 3, 0.0),
-    ("level2", 24, 4, 0.0),
-    ("level3", 36, 6, 0.0),
-    ("level4", 48, 8, 0.0),
+/// An FE mesh level a scene can name ([`MESH_LEVELS`]): the mesh parameters
+/// it sets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshLevel {
+    pub name: &'static str,
+    pub n_axial: i32,
+    pub n_radial: i32,
+    pub axial_grading: f64,
+    pub radial_grading: f64,
+}
+
+impl MeshLevel {
+    const fn new(name: &'static str, n_axial: i32, n_radial: i32, grading: (f64, f64)) -> Self {
+        MeshLevel {
+            name,
+            n_axial,
+            n_radial,
+            axial_grading: grading.0,
+            radial_grading: grading.1,
+        }
+    }
+
+    /// The level's value of mesh parameter `name` (one of [`MESH_PARAMETERS`]).
+    fn value(&self, name: &str) -> Value {
+        match name {
+            "n_axial" => Value::Integer(self.n_axial),
+            "n_radial" => Value::Integer(self.n_radial),
+            "axial_grading" => Value::Real(self.axial_grading),
+            _ => Value::Real(self.radial_grading),
+        }
+    }
+}
+
+/// The parameters a mesh level sets.
+const MESH_PARAMETERS: [&str; 4] = ["n_axial", "n_radial", "axial_grading", "radial_grading"];
+
+/// The FE mesh levels a scene can name: `lumped` (the default 16 × 3 of
+/// docs/fe.md, `crate::fe::mesh::LUMPED` with its grading; a test keeps the
+/// two equal) and the refinement levels `level0` … `level4`
+/// (`crate::fe::mesh::LEVELS`, ungraded).
+pub const MESH_LEVELS: [MeshLevel; 6] = [
+    MeshLevel::new("lumped", 16, 3, (0.9, 0.0)),
+    MeshLevel::new("level0", 12, 2, (0.0, 0.0)),
+    MeshLevel::new("level1", 18, 3, (0.0, 0.0)),
+    MeshLevel::new("level2", 24, 4, (0.0, 0.0)),
+    MeshLevel::new("level3", 36, 6, (0.0, 0.0)),
+    MeshLevel::new("level4", 48, 8, (0.0, 0.0)),
 ];
 
 /// The complete variable table of a variant (every parameter, input and
@@ -469,7 +505,6 @@ impl Draft {
             .iter()
             .filter(|(_, cau, _)| *cau == Causality::Parameter)
             .collect();
-        let mesh_names = ["n_axial", "n_radial", "axial_grading"];
         let mut given: Vec<(&'static str, Value, bool)> = Vec::new();
         for (list, constant) in [(&self.parameters, false), (&self.constants, true)] {
             let table_name = if constant {
@@ -488,7 +523,7 @@ impl Draft {
                     ));
                     continue;
                 };
-                if mesh_names.contains(pname) {
+                if MESH_PARAMETERS.contains(pname) {
                     errors.push(format!(
                         "{table_name}: '{name}' is set by the mesh level: use [fe] mesh = \"…\" \
                          (and mesh_constant) instead"
@@ -514,7 +549,7 @@ impl Draft {
             }
         }
         // The mesh.
-        let mut mesh_values: Option<(i32, i32, f64)> = None;
+        let mut mesh_level: Option<MeshLevel> = None;
         match (variant, &self.mesh) {
             (Variant::OneD, Some(_)) | (Variant::OneD, None) if self.mesh_constant.is_some() => {
                 errors.push("[fe] mesh_constant: the 1d variant has no mesh".into());
@@ -525,11 +560,11 @@ impl Draft {
             (Variant::OneD, None) => {}
             (Variant::Fe, m) => {
                 let name = m.as_deref().unwrap_or("lumped");
-                match MESH_LEVELS.iter().find(|(n, ..)| *n == name) {
-                    Some(&(_, na, nr, g)) => mesh_values = Some((na, nr, g)),
+                match MESH_LEVELS.iter().find(|l| l.name == name) {
+                    Some(&level) => mesh_level = Some(level),
                     None => errors.push(format!(
                         "[fe] mesh = {name:?}: unknown mesh level (known: {})",
-                        MESH_LEVELS.map(|l| l.0).join(", ")
+                        MESH_LEVELS.map(|l| l.name).join(", ")
                     )),
                 }
             }
@@ -541,13 +576,8 @@ impl Draft {
             }
             let (value, constant) = if let Some(&(_, v, k)) = given.iter().find(|g| g.0 == *name) {
                 (v, k)
-            } else if let (Some((na, nr, g)), true) = (mesh_values, mesh_names.contains(name)) {
-                let v = match *name {
-                    "n_axial" => Value::Integer(na),
-                    "n_radial" => Value::Integer(nr),
-                    _ => Value::Real(g),
-                };
-                (v, self.mesh_constant.unwrap_or(false))
+            } else if let (Some(level), true) = (mesh_level, MESH_PARAMETERS.contains(name)) {
+                (level.value(name), self.mesh_constant.unwrap_or(false))
             } else {
                 match start_of(ty) {
                     Some(v) => (v, false),

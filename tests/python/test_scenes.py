@@ -166,9 +166,10 @@ def test_the_scenes_have_their_own_guids_and_the_full_fmus_keep_theirs():
     guids = {i: read_model_description(str(fmu_path(i))).guid for i in SCENES}
     assert len(set(guids.values())) == len(guids)
     # The full FMUs' GUIDs, as tests/model_description.rs pins them (changed
-    # when the length input got its own declared range).
+    # when the length input got its own declared range, and HillMuscleFE when
+    # it got the radial_grading parameter).
     assert guids["HillMuscle1D"] == "{7c808cb6-7bd7-8378-be77-25860ec4a448}"
-    assert guids["HillMuscleFE"] == "{23e0a860-6d93-8d7e-877d-f67d59cb0c8c}"
+    assert guids["HillMuscleFE"] == "{ad976ecb-b2d0-84a6-8caa-6e7d27f5a9f8}"
 
 
 def assert_bitwise(a, b, what):
