@@ -9,8 +9,10 @@
 //!
 //! Part 1 drives the binary of `dist/HillMuscleFE.fmu` through its C ABI
 //! (dlopen; fmi2SetReal length + activation, fmi2DoStep, fmi2GetReal force
-//! and stress) on the default mesh: wall time per step (median, mean, 90th
-//! percentile) over the whole run, median over `REPEATS` runs.
+//! and stress) on the default mesh, and on the same mesh with uniform rings
+//! (`radial_grading` 0, the default before 2026-12-05), runs alternating:
+//! wall time per step (median, mean, 90th percentile) over the whole run,
+//! median over the repetitions.
 //!
 //! Part 2 runs the passive pull on the FE muscle in-process
 //! ([`Muscle::advance`]) for meshes from 576 to 13,500 tetrahedra: time per
@@ -58,20 +60,31 @@ fn vr_of(name: &str) -> c_uint {
         .unwrap_or_else(|| panic!("no variable {name}")) as c_uint
 }
 
-/// Per-step wall times [s] of one run through the C ABI, and the last force.
-fn run_cabi(api: &cabi::Api, steps: usize, inputs: fn(usize) -> (f64, f64)) -> (Vec<f64>, f64) {
+/// Per-step wall times [s] and linear solves (`newton_iterations`, read
+/// outside the timed calls) of one run through the C ABI with the Real
+/// `parameters` set (name, value), and the last force.
+fn run_cabi(
+    api: &cabi::Api,
+    steps: usize,
+    inputs: fn(usize) -> (f64, f64),
+    parameters: &[(&str, f64)],
+) -> (Vec<f64>, Vec<i32>, f64) {
     let ins = [vr_of("activation"), vr_of("length")];
     let outs = [vr_of("force"), vr_of("stress")];
-    let instance = Instance::new(api, &guid::<HillFE>());
+    let parameters: Vec<(c_uint, f64)> = parameters.iter().map(|&(n, v)| (vr_of(n), v)).collect();
+    let instance = Instance::with_parameters(api, &guid::<HillFE>(), &parameters);
     let mut out = [0.0; 2];
     let mut times = Vec::with_capacity(steps);
+    let mut solves = Vec::with_capacity(steps);
+    let iterations = vr_of("newton_iterations");
     for i in 0..steps {
         let (a, l) = inputs(i);
         let t = Instant::now();
         instance.step(&ins, &[a, l], i as f64 * H, H, &outs, &mut out);
         times.push(t.elapsed().as_secs_f64());
+        solves.push(instance.integer(iterations));
     }
-    (times, out[0])
+    (times, solves, out[0])
 }
 
 struct Summary {
@@ -79,16 +92,42 @@ struct Summary {
     mean: f64,
     p90: f64,
     max: f64,
+    /// Linear solves per step.
+    solves: f64,
+    /// Median time of the steps with one linear solve and with two (the
+    /// step times are bimodal: about 40 % of the passive pull's steps take a
+    /// second solve, so the overall median sits in the tail of the one-solve
+    /// steps and moves with their share).
+    one_solve: f64,
+    two_solves: f64,
 }
 
-fn summary(mut t: Vec<f64>) -> Summary {
+fn summary(times: Vec<f64>, solves: Vec<i32>) -> Summary {
+    let n = times.len();
+    let median_of = |k: i32| {
+        let t: Vec<f64> = times
+            .iter()
+            .zip(&solves)
+            .filter(|&(_, &s)| s == k)
+            .map(|(&t, _)| t)
+            .collect();
+        if t.is_empty() {
+            f64::NAN
+        } else {
+            median(t)
+        }
+    };
+    let (one_solve, two_solves) = (median_of(1), median_of(2));
+    let mut t = times;
     t.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    let n = t.len();
     Summary {
         median: t[n / 2],
         mean: t.iter().sum::<f64>() / n as f64,
         p90: t[(9 * n) / 10],
         max: t[n - 1],
+        solves: solves.iter().map(|&s| s as f64).sum::<f64>() / n as f64,
+        one_solve,
+        two_solves,
     }
 }
 
@@ -133,6 +172,7 @@ fn mesh_row(res: Resolution) {
     let steps = 2000;
     let (mut solves, mut residuals, mut factorizations) = (0, 0, 0);
     let mut times = Vec::with_capacity(steps);
+    let mut step_solves = Vec::with_capacity(steps);
     let mut at_10 = None;
     for i in 0..steps {
         let (_, l) = passive(i);
@@ -140,6 +180,7 @@ fn mesh_row(res: Resolution) {
         let r = m.advance(&p, l, H, &|_| 0.0).unwrap();
         times.push(t.elapsed().as_secs_f64());
         solves += r.iterations;
+        step_solves.push(r.iterations as i32);
         residuals += r.residuals;
         factorizations += r.factorizations;
         m = r.muscle;
@@ -175,7 +216,7 @@ fn mesh_row(res: Resolution) {
         solves as f64 / k * solve,
     ];
     let total: f64 = split.iter().sum();
-    let sm = summary(times);
+    let sm = summary(times, step_solves);
     let state_bytes =
         8 * (m.x.len() * (1 + m.trend.increments.len() + 1) + 2 * 2 * m.history.len());
     println!(
@@ -214,28 +255,40 @@ fn main() {
         "HillMuscleFE through the C ABI (SetReal + DoStep + GetReal), default mesh {}×{} graded {LUMPED_GRADING:?}, h = {H} s; median of {repeats} runs",
         LUMPED.n_axial, LUMPED.n_radial
     );
-    println!("| workload | steps | median ms/step | mean ms/step | p90 ms/step | max ms/step | stress at the end (kPa) |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("Rows \"radial_grading 0\": the same mesh with uniform rings (the default before 2026-12-05), runs alternating with the default's.");
+    println!("| workload | mesh | steps | median ms/step | mean ms/step | p90 ms/step | max ms/step | solves/step | median ms, 1-solve / 2-solve steps | stress at the end (kPa) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    let variants: [(&str, &[(&str, f64)]); 2] = [
+        ("default", &[]),
+        ("radial_grading 0", &[("radial_grading", 0.0)]),
+    ];
     for (name, steps, inputs) in [
         ("passive pull", 2000, passive as fn(usize) -> (f64, f64)),
         ("activated elongation", 2500, activated),
     ] {
-        let mut runs = Vec::new();
-        let mut force = 0.0;
+        let mut runs: Vec<Vec<Summary>> = variants.iter().map(|_| Vec::new()).collect();
+        let mut force = vec![0.0; variants.len()];
         for _ in 0..repeats {
-            let (t, f) = run_cabi(&api, steps, inputs);
-            force = f;
-            runs.push(summary(t));
+            for (k, (_, parameters)) in variants.iter().enumerate() {
+                let (t, s, f) = run_cabi(&api, steps, inputs, parameters);
+                force[k] = f;
+                runs[k].push(summary(t, s));
+            }
         }
-        let m = |f: fn(&Summary) -> f64| median(runs.iter().map(f).collect());
-        println!(
-            "| {name} | {steps} | {:.3} | {:.3} | {:.3} | {:.1} | {:.1} |",
-            m(|s| s.median) * 1e3,
-            m(|s| s.mean) * 1e3,
-            m(|s| s.p90) * 1e3,
-            m(|s| s.max) * 1e3,
-            force / MEAN_AREA / 1e3
-        );
+        for (k, (mesh, _)) in variants.iter().enumerate() {
+            let m = |f: fn(&Summary) -> f64| median(runs[k].iter().map(f).collect());
+            println!(
+                "| {name} | {mesh} | {steps} | {:.3} | {:.3} | {:.3} | {:.1} | {:.3} | {:.3} / {:.3} | {:.1} |",
+                m(|s| s.median) * 1e3,
+                m(|s| s.mean) * 1e3,
+                m(|s| s.p90) * 1e3,
+                m(|s| s.max) * 1e3,
+                m(|s| s.solves),
+                m(|s| s.one_solve) * 1e3,
+                m(|s| s.two_solves) * 1e3,
+                force[k] / MEAN_AREA / 1e3
+            );
+        }
     }
 
     // Part 2: cost against mesh size, in-process.

@@ -34,6 +34,7 @@ type Comp = unsafe extern "C" fn(*mut c_void) -> c_int;
 type Free = unsafe extern "C" fn(*mut c_void);
 type SetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const f64) -> c_int;
 type GetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut f64) -> c_int;
+type GetInteger = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut c_int) -> c_int;
 type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, c_int) -> c_int;
 
 /// The functions a co-simulation loop calls.
@@ -46,6 +47,7 @@ pub struct Api {
     pub free: Free,
     pub set_real: SetReal,
     pub get_real: GetReal,
+    pub get_integer: GetInteger,
     pub do_step: DoStep,
 }
 
@@ -95,6 +97,7 @@ pub fn load(id: &str) -> Api {
             free: sym(lib, "fmi2FreeInstance"),
             set_real: sym(lib, "fmi2SetReal"),
             get_real: sym(lib, "fmi2GetReal"),
+            get_integer: sym(lib, "fmi2GetInteger"),
             do_step: sym(lib, "fmi2DoStep"),
         }
     }
@@ -110,6 +113,12 @@ impl<'a> Instance<'a> {
     /// Instantiate (co-simulation, no logger), set up from t = 0 without a
     /// stop time, initialize.
     pub fn new(api: &'a Api, guid: &str) -> Instance<'a> {
+        Self::with_parameters(api, guid, &[])
+    }
+
+    /// [`Instance::new`] with the Real parameters `(value reference, value)`
+    /// set after instantiation.
+    pub fn with_parameters(api: &'a Api, guid: &str, parameters: &[(c_uint, f64)]) -> Instance<'a> {
         let name = CString::new("bench").unwrap();
         let guid = CString::new(guid).unwrap();
         let cb = Callbacks {
@@ -125,6 +134,13 @@ impl<'a> Instance<'a> {
                 !c.is_null(),
                 "fmi2Instantiate failed (stale dist/*.fmu? rebuild it)"
             );
+            for &(vr, value) in parameters {
+                assert_eq!(
+                    (api.set_real)(c, &vr, 1, &value),
+                    0,
+                    "parameter {vr} = {value}"
+                );
+            }
             assert_eq!((api.setup)(c, 0, 0.0, 0.0, 0, 0.0), 0);
             assert_eq!((api.enter_init)(c), 0);
             assert_eq!((api.exit_init)(c), 0);
@@ -152,6 +168,16 @@ impl<'a> Instance<'a> {
                 "t = {t}: statuses {s1} {s2} {s3}"
             );
         }
+    }
+}
+
+impl Instance<'_> {
+    /// fmi2GetInteger of one variable; panics on a non-OK status.
+    pub fn integer(&self, vr: c_uint) -> i32 {
+        let mut v: c_int = 0;
+        let s = unsafe { (self.api.get_integer)(self.c, &vr, 1, &mut v) };
+        assert_eq!(s, 0, "fmi2GetInteger({vr})");
+        v
     }
 }
 
