@@ -44,7 +44,7 @@ FE_DEFAULT_LEVELS = ((12, 2), (18, 3), (24, 4))
 """(n_axial, n_radial) of the FE mesh levels 0, 1, 2 of ``src/fe/mesh.rs``
 (864, 2,916, 6,912 tetrahedra; n_axial = 6 n_radial keeps the element shapes),
 graded toward the clamped faces like the FMU's default 16 x 3 mesh
-(``axial_grading`` 0.9; docs/fe.md)."""
+(``axial_grading`` 0.9, ``radial_grading`` 0.6, the FMU's defaults; docs/fe.md)."""
 FE_EXTRA_OUTPUTS = ("volume_ratio_min", "volume_ratio_max", "max_fibre_stretch", "newton_iterations")
 
 

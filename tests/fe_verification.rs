@@ -78,8 +78,8 @@ fn pulled_stress(d: &Arc<Discretization>, p: &Params, a: f64, strain: f64) -> f6
 /// passive stress at 20 % strain on three levels graded like the default
 /// mesh (12 × 2, 18 × 3, 24 × 4) falls and converges (each difference
 /// smaller than the last), and the default mesh ([`LUMPED`], 16 × 3) lies
-/// within 3 % of the finest of them. (Measured, docs/fe.md: 233.2, 224.0,
-/// 221.3 kPa, default 224.2 kPa; 36 × 6 gives 218.8 kPa at grading 0.85.)
+/// within 3 % of the finest of them. (Measured, docs/fe.md: 229.9, 221.6,
+/// 219.3 kPa, default 222.0 kPa; 48 × 8 gives 216.1 kPa.)
 #[test]
 fn passive_stress_converges_under_refinement_and_the_default_is_within_3_percent() {
     let p = Params::default();
@@ -114,8 +114,8 @@ fn passive_stress_converges_under_refinement_and_the_default_is_within_3_percent
 /// The plain displacement tetrahedron (one volume constraint per element)
 /// on the same meshes: on the uniform 12 × 2 mesh more than 4 times stiffer
 /// than the nodal-pressure element (measured 1954 vs 358 kPa), and on the
-/// default graded mesh still more than 1.3 times (327 vs 224 kPa; the
-/// refined nodal-pressure meshes approach ~217 kPa).
+/// default graded mesh still more than 1.3 times (331 vs 222 kPa; the
+/// refined nodal-pressure meshes approach ~215 kPa).
 #[test]
 fn plain_tetrahedra_are_far_stiffer_on_the_same_mesh() {
     let p = Params::default();

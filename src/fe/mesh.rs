@@ -77,10 +77,11 @@
 //! ratio ≥ 0.41, dihedral ≥ 16.5°).
 //!
 //! [`LUMPED`] (16 × 3, 2,592 tetrahedra, slices graded 0.9 toward the end
-//! faces by [`graded_slice`]) is the FE muscle's small default; the
+//! faces by [`graded_slice`], rings graded 0.6 toward the lateral surface by
+//! [`graded_ring`]: [`LUMPED_GRADING`]) is the FE muscle's small default; the
 //! convergence study that chose it is in docs/fe.md. Its end layers are a
 //! tenth of the uniform spacing thick, so its elements there are flat — the
-//! quality table above is for uniform slices.
+//! quality table above is for uniform slices and rings.
 
 use nalgebra::{Vector2, Vector3};
 use std::collections::HashMap;
@@ -279,7 +280,7 @@ pub const LUMPED: Resolution = Resolution {
 /// The grading of the lumped mesh ([`graded_slice`], [`graded_ring`]).
 pub const LUMPED_GRADING: Grading = Grading {
     axial: 0.9,
-    radial: 0.0,
+    radial: 0.6,
 };
 
 /// How a mesh's element layers are graded: the slices toward the end faces

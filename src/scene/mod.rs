@@ -311,7 +311,7 @@ const MESH_PARAMETERS: [&str; 4] = ["n_axial", "n_radial", "axial_grading", "rad
 /// two equal) and the refinement levels `level0` … `level4`
 /// (`crate::fe::mesh::LEVELS`, ungraded).
 pub const MESH_LEVELS: [MeshLevel; 6] = [
-    MeshLevel::new("lumped", 16, 3, (0.9, 0.0)),
+    MeshLevel::new("lumped", 16, 3, (0.9, 0.6)),
     MeshLevel::new("level0", 12, 2, (0.0, 0.0)),
     MeshLevel::new("level1", 18, 3, (0.0, 0.0)),
     MeshLevel::new("level2", 24, 4, (0.0, 0.0)),
