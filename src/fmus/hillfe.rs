@@ -201,6 +201,12 @@ struct LastStep {
     da_du: f64,
 }
 
+/// Both gradings in their declared range, the message naming the parameter.
+fn check_grading(g: Grading) -> Result<(), ModelError> {
+    check_range("axial_grading", g.axial, GRADING_RANGE)?;
+    check_range("radial_grading", g.radial, GRADING_RANGE)
+}
+
 /// The fusiform discretization for these geometry and mesh parameters
 /// (`reuse` when it is that one already).
 fn fe_discretization(
@@ -385,8 +391,7 @@ pub struct HillFEModel<S: Scene> {
     substep_tolerance: f64,
     n_axial: i32,
     n_radial: i32,
-    axial_grading: f64,
-    radial_grading: f64,
+    grading: Grading,
     fibre_layout: i32,
     command: f64,
     length: Option<f64>,
@@ -413,13 +418,6 @@ impl<S: Scene> HillFEModel<S> {
         self.length.unwrap_or(self.l0)
     }
 
-    fn grading(&self) -> Grading {
-        Grading {
-            axial: self.axial_grading,
-            radial: self.radial_grading,
-        }
-    }
-
     fn layout(&self) -> FibreLayout {
         if self.fibre_layout == 1 {
             FibreLayout::Meridian
@@ -435,8 +433,7 @@ impl<S: Scene> HillFEModel<S> {
         check_range("L0", self.l0, L0_RANGE)?;
         check_range("area", self.area, AREA_RANGE)?;
         check_unit_interval("initial_activation", self.initial_activation)?;
-        check_range("axial_grading", self.axial_grading, GRADING_RANGE)?;
-        check_range("radial_grading", self.radial_grading, GRADING_RANGE)?;
+        check_grading(self.grading)?;
         check_range("length", self.length(), LENGTH_RANGE)?;
         Ok(())
     }
@@ -454,7 +451,7 @@ impl<S: Scene> HillFEModel<S> {
             self.l0,
             self.area,
             resolution,
-            self.grading(),
+            self.grading,
             self.layout(),
         )
     }
@@ -674,8 +671,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             substep_tolerance: SUBSTEP_RTOL,
             n_axial: DEFAULT_MESH.n_axial as i32,
             n_radial: DEFAULT_MESH.n_radial as i32,
-            axial_grading: DEFAULT_GRADING.axial,
-            radial_grading: DEFAULT_GRADING.radial,
+            grading: DEFAULT_GRADING,
             fibre_layout: 0,
             command: 0.0,
             length: None,
@@ -715,8 +711,8 @@ impl<S: Scene> Model for HillFEModel<S> {
             Var::Area => self.area,
             Var::InitialActivation => self.initial_activation,
             Var::SubstepTolerance => self.substep_tolerance,
-            Var::AxialGrading => self.axial_grading,
-            Var::RadialGrading => self.radial_grading,
+            Var::AxialGrading => self.grading.axial,
+            Var::RadialGrading => self.grading.radial,
             Var::Activation => self.command,
             Var::Length => self.length(),
             Var::Out(o) => self.outputs[o as usize],
@@ -762,11 +758,11 @@ impl<S: Scene> Model for HillFEModel<S> {
             }
             Var::AxialGrading => {
                 check_range("axial_grading", value, GRADING_RANGE)?;
-                self.axial_grading = value;
+                self.grading.axial = value;
             }
             Var::RadialGrading => {
                 check_range("radial_grading", value, GRADING_RANGE)?;
-                self.radial_grading = value;
+                self.grading.radial = value;
             }
             Var::SubstepTolerance => {
                 check_range("substep_tolerance", value, SUBSTEP_TOLERANCE_RANGE)?;
@@ -985,7 +981,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                         n_axial: self.n_axial as usize,
                         n_radial: self.n_radial as usize,
                     },
-                    self.grading(),
+                    self.grading,
                     self.layout(),
                 )
             })
@@ -1004,8 +1000,8 @@ impl<S: Scene> Model for HillFEModel<S> {
             .f64(self.initial_activation)
             .i32(self.n_axial)
             .i32(self.n_radial)
-            .f64(self.axial_grading)
-            .f64(self.radial_grading)
+            .f64(self.grading.axial)
+            .f64(self.grading.radial)
             .i32(self.fibre_layout)
             .bool(self.adaptive_substeps)
             .f64(self.substep_tolerance)
@@ -1123,8 +1119,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             substep_tolerance: SUBSTEP_RTOL,
             n_axial: DEFAULT_MESH.n_axial as i32,
             n_radial: DEFAULT_MESH.n_radial as i32,
-            axial_grading: DEFAULT_GRADING.axial,
-            radial_grading: DEFAULT_GRADING.radial,
+            grading: DEFAULT_GRADING,
             fibre_layout: 0,
             command: 0.0,
             length: None,
@@ -1202,8 +1197,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             let layout = r.i32()?;
             check_range("L0", l0, L0_RANGE).map_err(|e| bad(e.0))?;
             check_range("area", area, AREA_RANGE).map_err(|e| bad(e.0))?;
-            check_range("axial_grading", grading.axial, GRADING_RANGE).map_err(|e| bad(e.0))?;
-            check_range("radial_grading", grading.radial, GRADING_RANGE).map_err(|e| bad(e.0))?;
+            check_grading(grading).map_err(|e| bad(e.0))?;
             let in_range = |v: i32, (lo, hi): (i32, i32)| (lo..=hi).contains(&v);
             if !(in_range(n_axial, N_AXIAL_RANGE)
                 && in_range(n_radial, N_RADIAL_RANGE)
