@@ -25,6 +25,7 @@ pub mod fmus;
 pub mod law;
 pub mod scene;
 pub mod specimen;
+pub mod step_control;
 
 /// The scene this binary exports (feature `export-scene`): the `Scene` type
 /// and `export_fmi2!` line that fmu_build generated for it (`build.rs`).

@@ -54,10 +54,11 @@ pub use crate::fe::newton::{
     Budget, Increment, Solution, Solved, StepInput, TangentCache, Trend, RESIDUAL_TOLERANCE,
 };
 use crate::law::force_length::force_length;
-use crate::law::hill_fibre::{backward_euler_error, FibreStress, MAX_CONTROLLED_TRIES};
+use crate::law::hill_fibre::{backward_euler_error, FibreStress};
 use crate::law::stress::IsochoricStress;
 use crate::law::volumetric::volumetric_derivatives;
 use crate::law::{FibreHistory, FibreRate, LawPoint, Params};
+use crate::step_control::MAX_CONTROLLED_TRIES;
 
 /// Largest number of substeps a step is split into before it is refused.
 pub const MAX_SUBSTEPS: usize = 64;

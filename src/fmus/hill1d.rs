@@ -36,7 +36,7 @@ use crate::fmi2::{
 use crate::law::activation::{level_at, Decay};
 use crate::law::force_length::force_length;
 use crate::law::force_velocity::branch_included;
-use crate::law::hill_fibre::{backward_euler_error, ce_stretch, MAX_CONTROLLED_TRIES};
+use crate::law::hill_fibre::{backward_euler_error, ce_stretch};
 use crate::law::params::{AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, evaluable_stretch_range, Sensitivity};
@@ -44,6 +44,7 @@ use crate::law::{
     solve_uniaxial_with, FibreHistory, FibreRate, ParamId, Params, Uniaxial, PARAMETERS,
 };
 use crate::scene::{LawOf, Scene, Value};
+use crate::step_control::MAX_CONTROLLED_TRIES;
 use std::marker::PhantomData;
 
 /// Rest length of the paper's specimen [m].

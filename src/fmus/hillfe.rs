@@ -46,11 +46,11 @@ use crate::fmus::common::{
     parameter, real, substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
 };
 use crate::law::activation::{level_at, Decay};
-use crate::law::hill_fibre::MAX_CONTROLLED_TRIES;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{FibreHistory, FibreRate, ParamId, Params, PARAMETERS};
 use crate::scene::{Scene, Value};
+use crate::step_control::MAX_CONTROLLED_TRIES;
 use std::marker::PhantomData;
 
 /// Default rest length: the paper's specimen.

@@ -55,16 +55,6 @@ pub fn backward_euler_error(p: &Params, cap: f64, rate_start: f64, rate_end: f64
     estimate.min(cap)
 }
 
-/// Most tries (accepted and rejected pieces) of one error-controlled step,
-/// in both models, before the rest of the step is taken in one piece: the
-/// work bound of the substep control (the 1D model's substeps, the FE
-/// muscle's `Muscle::advance_controlled`). A bound that binds leaves the
-/// error uncontrolled, so it sits far above what the grid of
-/// docs/stability.md needs: an FE element whose CE yields under fast
-/// lengthening (f_v near its plateau) needs pieces of ~10 µs, hundreds in
-/// a 0.1 s step (docs/fe.md, "Time stepping of the CE–SEE law").
-pub const MAX_CONTROLLED_TRIES: u32 = 10_000;
-
 impl FibreHistory {
     /// Whether the series kinematics (MODEL_NOTES "Hill fibre") describe a real
     /// fibre: both element stretches finite and > 0. The law itself stays
