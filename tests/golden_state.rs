@@ -99,11 +99,11 @@ fn one_d_scene_states_are_unchanged() {
             golden::<Hill1DModel<HillActuator1D>>(40),
         ],
         &[
-            ("HillMuscle1D", 578, 0x4a61c372b5dcfd1c),
+            ("HillMuscle1D", 578, 0x61ad5fd7e977d9ac),
             ("HillPassive1D", 570, 0x88facbe782e17a86),
-            ("HillActivated1D", 578, 0x4a61c372b5dcfd1c),
-            ("HillIsometric1D", 570, 0xb81f6699e2325910),
-            ("HillActuator1D", 578, 0x4a61c372b5dcfd1c),
+            ("HillActivated1D", 578, 0x61ad5fd7e977d9ac),
+            ("HillIsometric1D", 570, 0xe8dbb8dc7147a29f),
+            ("HillActuator1D", 578, 0x61ad5fd7e977d9ac),
         ],
     );
 }
