@@ -1679,6 +1679,43 @@ fn do_step_rejects_bad_steps_without_changing_anything() {
     assert_eq!(f.step(t, 1e-3), fmi2Error);
 }
 
+/// Time that would not advance is not reported as advanced: from a start
+/// time of 1e16 a step of 1 ms leaves t + h == t (and at 1e13 it would
+/// advance by twice h): refused with fmi2Error naming the step, the
+/// instance unchanged. The communication-point check is absolute beyond
+/// |t| = 5e8 h: at t = 1e13 a point 1e4 s off (within the old relative
+/// 1e-9 |t|) is refused, and the tolerance never exceeds 0.500001 h.
+#[test]
+fn a_step_the_time_cannot_resolve_is_refused() {
+    for (start, h) in [(1e16, 1e-3), (1e13, 1e-3), (1.0, 1e-17)] {
+        let f = Fmu::<Lag>::new();
+        // h_max raised to let the resolved step below through.
+        let resolved = 1e3 * start * f64::EPSILON;
+        f.ok(f.set_real(&[HMAX], &[resolved]));
+        f.ok(unsafe { api::setup_experiment::<Lag>(f.c, 0, 0.0, start, 0, 0.0) });
+        f.ok(unsafe { api::enter_initialization_mode::<Lag>(f.c) });
+        f.ok(unsafe { api::exit_initialization_mode::<Lag>(f.c) });
+        let before = f.state_bytes();
+        f.clear_logs();
+        assert_eq!(f.step(start, h), fmi2Error, "start {start}, h {h}");
+        assert!(f.has_log(fmi2Error, "cannot represent the time after this step"));
+        assert_eq!(f.state_bytes(), before);
+        // A step the time resolves goes through.
+        f.ok(f.step(start, resolved));
+    }
+    let f = Fmu::<Lag>::new();
+    f.ok(unsafe { api::setup_experiment::<Lag>(f.c, 0, 0.0, 1e13, 0, 0.0) });
+    f.ok(unsafe { api::enter_initialization_mode::<Lag>(f.c) });
+    f.ok(unsafe { api::exit_initialization_mode::<Lag>(f.c) });
+    assert_eq!(f.step(1e13 + 1e4, 0.1), fmi2Error);
+    assert!(f.has_log(fmi2Error, "does not match the FMU time"));
+    assert_eq!(f.step(1e13 + 0.06, 0.1), fmi2Error);
+    f.ok(f.step(1e13 + 0.04, 0.1));
+    for (t, h) in [(1e13, 1e-3), (0.0, 1.0), (1e300, 1e290), (3.0, 1e-12)] {
+        assert!(api::time_tolerance(t, h) <= 0.500001 * h * (1.0 + 1e-15));
+    }
+}
+
 #[test]
 fn accumulated_time_drift_over_a_million_tiny_steps_is_accepted() {
     let f = Fmu::<Lag>::new();

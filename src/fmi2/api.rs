@@ -36,11 +36,24 @@ use super::types::*;
 
 /// Tolerance when comparing `currentCommunicationPoint` with the FMU's time
 /// (and `tc + h` with `stopTime`) in `fmi2DoStep`:
-/// `1e-9 * max(1, |t|) + 1e-6 * h`. Importers that accumulate `t += h` or
-/// compute `t = t0 + i * h` stay well inside it; a genuinely different time
-/// does not.
+/// `min(1e-9 * max(1, |t|), h / 2) + 1e-6 * h`. The relative part absorbs
+/// the rounding an importer accumulates (`t += h`, `t = t0 + i * h`); it is
+/// capped at half a step, so the tolerance never exceeds 0.500001 h in
+/// absolute terms and a point nearer another communication point is never
+/// taken for this one.
 pub fn time_tolerance(t: f64, h: f64) -> f64 {
-    1e-9 * t.abs().max(1.0) + 1e-6 * h.abs()
+    (1e-9 * t.abs().max(1.0)).min(0.5 * h.abs()) + 1e-6 * h.abs()
+}
+
+/// Largest relative difference between `communicationStepSize` and the step
+/// the time can represent at `currentCommunicationPoint`, `(tc + h) - tc`:
+/// beyond it the FMU's time would not advance by the step it computed (at
+/// t = 1e16 a step of 1 ms does not advance it at all).
+pub const STEP_RESOLUTION: f64 = 1e-2;
+
+/// Whether the time at `tc` resolves a step of `h` ([`STEP_RESOLUTION`]).
+pub fn step_resolved(tc: f64, h: f64) -> bool {
+    (((tc + h) - tc) - h).abs() <= STEP_RESOLUTION * h
 }
 
 /// `fmi2GetTypesPlatform`: `"default"`.
@@ -1390,7 +1403,9 @@ pub unsafe fn get_real_output_derivatives<M: Model>(
 /// `fmi2DoStep` (FMI 2.0 spec, section 4.2.2), synchronous. Rejected with
 /// `fmi2Error` and no change: `communicationStepSize` not finite and > 0,
 /// `currentCommunicationPoint` not finite or further than
-/// [`time_tolerance`] from the FMU's time, or (with a defined stop time)
+/// [`time_tolerance`] from the FMU's time, a step the time cannot represent
+/// there ([`step_resolved`]: the end time would not advance by the step
+/// computed), or (with a defined stop time)
 /// `tc + h` past `stopTime` by more than the tolerance. Then
 /// [`Model::do_step`]:
 /// - `Ok`: time = `tc + h`, `fmi2OK`;
@@ -1431,6 +1446,16 @@ pub unsafe fn do_step<M: Model>(
                 inst.log.error(&format!(
                     "{F}: the step from {tc:?} with communicationStepSize = {h:?} ends at {:?}, not a finite time",
                     tc + h
+                ));
+                return Err(fmi2Error);
+            }
+            if !step_resolved(tc, h) {
+                inst.log.error(&format!(
+                    "{F}: the step from {tc:?} with communicationStepSize = {h:?} ends at {:?}: binary64 \
+                     cannot represent the time after this step to {}% of it here; use a larger step or an \
+                     earlier start time",
+                    tc + h,
+                    STEP_RESOLUTION * 100.0
                 ));
                 return Err(fmi2Error);
             }
