@@ -22,6 +22,7 @@
 use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+use super::fp_env::QuietFp;
 use super::initial_sensitivity::initial_parameter_column;
 use super::instance::{decode_state, encode_state, Instance, LogCategory, LogSink};
 use super::model::{
@@ -78,6 +79,7 @@ unsafe fn call<M: Model>(
     allowed: StateSet,
     body: impl FnOnce(&mut Instance<M>) -> Outcome,
 ) -> fmi2Status {
+    let _fp = QuietFp::enter();
     // SAFETY: forwarded contract.
     let Some(inst) = (unsafe { Instance::<M>::from_component(c) }) else {
         return fmi2Error;
@@ -429,6 +431,7 @@ pub unsafe fn instantiate<M: Model>(
     logging_on: fmi2Boolean,
 ) -> fmi2Component {
     const F: &str = "fmi2Instantiate";
+    let _fp = QuietFp::enter();
     let callbacks = if functions.is_null() {
         None
     } else {

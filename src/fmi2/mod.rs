@@ -16,6 +16,8 @@
 //!   variables may be set in which state.
 //! - [`instance`]: the instance, logging, FMU state serialization.
 //! - [`bytes`]: little-endian byte helpers for serialized FMU states.
+//! - [`fp_env`]: the default floating-point environment every entry point
+//!   computes in (a host's trapping exceptions are masked for the call).
 //! - [`model_description`]: `modelDescription.xml`, the GUID, a table check,
 //!   `documentation/index.html`.
 //!
@@ -88,6 +90,7 @@ pub use model::*;
 
 pub mod api;
 pub mod bytes;
+pub mod fp_env;
 pub mod initial_sensitivity;
 pub mod instance;
 pub mod model_description;
