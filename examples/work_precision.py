@@ -377,7 +377,7 @@ def plot(rows, scenes, out_dir):
                 _label_steps(ax, fig, series)
             axes[-1][col].legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=8,
                                  frameon=False)
-        fig.suptitle(f"Work-precision, {name} scene (point labels: communication step h [s])")
+        fig.suptitle(f"Work-precision, {name} scene (labels: step h [s])", fontsize=11)
         path = Path(out_dir) / f"work_precision_{name}.png"
         fig.savefig(path, dpi=100)
         plt.close(fig)
