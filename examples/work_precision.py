@@ -9,6 +9,7 @@ and with input derivatives, and compared with a reference::
 
     .venv/bin/python examples/work_precision.py            # full: docs/work-precision.md, docs/figures/work_precision_*.png
     .venv/bin/python examples/work_precision.py --quick    # < 2 min: out/work-precision-quick.md (used by the tests)
+    .venv/bin/python examples/work_precision.py --replot docs/work-precision.json   # figures only, from saved results
 
 Definitions (also written into the report):
 
@@ -304,7 +305,38 @@ def fmu_info(model):
 # Report
 # --------------------------------------------------------------------------
 
+PATHS = (("cabi_s_per_s", "C ABI (C loop)"), ("fmpy_s_per_s", "fmpy (Python loop)"))
+"""The two cost paths: one row of panels each."""
+
+
+def _family_of(row):
+    """The model family of a row: "1D" or "FE" (a panel column each)."""
+    return row.get("model") or row["family"].split()[0]
+
+
+def _label_steps(ax, fig, series):
+    """Write each point's step h beside it, skipping a label that would overlap
+    one already written (coinciding series share their labels)."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    placed = []
+    for color, points in series:
+        for h, x, y in points:
+            text = ax.annotate(f"{h:g}", (x, y), fontsize=7, color=color, textcoords="offset points",
+                               xytext=(4, 3), annotation_clip=True)
+            box = text.get_window_extent(renderer).expanded(1.05, 1.1)
+            if any(box.overlaps(other) for other in placed):
+                text.remove()
+            else:
+                placed.append(box)
+
+
 def plot(rows, scenes, out_dir):
+    """One figure per scene: a column of panels per model family (1D, FE), a row
+    per cost path (C ABI, fmpy); in a panel one series per variant (mesh level:
+    one colour) and input-derivative choice (open circles, solid line: with
+    derivatives), each point labelled with its step h [s]; the
+    legend of a column sits under it, outside the data. Returns the paths."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -312,32 +344,54 @@ def plot(rows, scenes, out_dir):
 
     paths = []
     for scene in scenes:
-        fig, ax = plt.subplots(figsize=(7, 5))
-        groups = {}
-        for r in rows:
-            if r["scene"] == scene.name and not r.get("error"):
-                groups.setdefault((r["family"], r["derivatives"]), []).append(r)
-        for i, ((family, deriv), group) in enumerate(sorted(groups.items())):
-            group = sorted(group, key=lambda r: -r["h"])
-            err = [max(r["rms"], 1e-17) for r in group]
-            color = f"C{i}"
-            name = f"{family}, {'with' if deriv else 'no'} input derivatives"
-            ax.loglog(err, [r["fmpy_s_per_s"] for r in group], "o-", color=color, label=f"{name} (fmpy)")
-            ax.loglog(err, [r["cabi_s_per_s"] for r in group], "s--", color=color, mfc="none",
-                      label=f"{name} (C ABI)")
-            for r, e in zip(group, err):
-                ax.annotate(f"{r['h']:g}", (e, r["cabi_s_per_s"]), fontsize=6, alpha=0.7,
-                            textcoords="offset points", xytext=(3, -8))
-        ax.set(xlabel="RMS error of force / peak reference force", ylabel="wall time per simulated second [s]",
-               title=f"work-precision: {scene.name} (labels: h [s])")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        path = Path(out_dir) / f"work_precision_{scene.name}.png"
-        fig.savefig(path, dpi=110)
+        name = getattr(scene, "name", scene)
+        ok = [r for r in rows if r["scene"] == name and not r.get("error")]
+        families = list(dict.fromkeys(_family_of(r) for r in ok))
+        fig, axes = plt.subplots(len(PATHS), max(1, len(families)), figsize=(6.2 * max(1, len(families)), 9.5),
+                                 squeeze=False, layout="constrained")
+        for col, model in enumerate(families):
+            groups = {}
+            for r in ok:
+                if _family_of(r) == model:
+                    groups.setdefault((r["family"], r["derivatives"]), []).append(r)
+            rank = {f: i for i, f in enumerate(dict.fromkeys(r["family"] for r in ok))}
+            keys = sorted(groups, key=lambda k: (rank[k[0]], k[1]))
+            for row, (cost, path_name) in enumerate(PATHS):
+                ax = axes[row][col]
+                series = []
+                colors = {f: f"C{i}" for i, f in enumerate(dict.fromkeys(k[0] for k in keys))}
+                for key in keys:
+                    family, deriv = key
+                    group = sorted(groups[key], key=lambda r: -r["h"])
+                    err = [max(r["rms"], 1e-17) for r in group]
+                    cost_values = [r[cost] for r in group]
+                    color = colors[family]
+                    ax.loglog(err, cost_values, "o-" if deriv else "s--", color=color, mfc="none" if deriv else color,
+                              label=f"{family}, {'with' if deriv else 'no'} input derivatives")
+                    series.append((color, [(r["h"], e, c) for r, e, c in zip(group, err, cost_values)]))
+                ax.set_title(f"{name}: {model}, {path_name}", fontsize=10)
+                ax.set_xlabel("RMS error of force / peak reference force")
+                ax.set_ylabel("wall time per simulated second [s]")
+                ax.grid(True, which="both", alpha=0.3)
+                ax.margins(x=0.12, y=0.12)
+                _label_steps(ax, fig, series)
+            axes[-1][col].legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=8,
+                                 frameon=False)
+        fig.suptitle(f"Work-precision, {name} scene (labels: step h [s])", fontsize=11)
+        path = Path(out_dir) / f"work_precision_{name}.png"
+        fig.savefig(path, dpi=100)
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def replot(json_path, out_dir):
+    """Redraw the figures from a results JSON (the --json output, or the data
+    committed beside docs/work-precision.md), running nothing."""
+    result = json.loads(Path(json_path).read_text())
+    names = [s["name"] for s in result["meta"]["scenes"]]
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    return plot(result["rows"], names, out_dir)
 
 
 def _times_below(h_min, h_ref):
@@ -649,8 +703,14 @@ def main(argv=None):
     parser.add_argument("--json", default=None, help="raw results (default out/work_precision[_quick].json)")
     parser.add_argument("--jobs", type=int, default=1,
                         help="cases measured at a time, one process each (default 1; the report says how many)")
+    parser.add_argument("--replot", default=None, metavar="JSON",
+                        help="only redraw the figures from a results JSON into --out (default docs/figures)")
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
+    if args.replot:
+        for path in replot(args.replot, Path(args.out or (REPO / "docs/figures"))):
+            print(f"wrote {path}")
+        return 0
     jobs = max(1, args.jobs)
     mode = "quick" if args.quick else "full"
     out_dir = Path(args.out or (REPO / ("out/figures" if args.quick else "docs/figures")))

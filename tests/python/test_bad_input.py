@@ -4,7 +4,7 @@ A rejected set returns fmi2Error (fmpy raises FMICallException with status 3),
 logs a message naming the variable and its valid range, and leaves the
 instance as it was: its outputs are unchanged and a later legal call behaves
 as if the rejected one never happened (compared with a twin instance that
-never saw the bad call). Each row of the README's "Bad input" table has a
+never saw the bad call). Each row of docs/reference/bad-input.md has a
 test here, run on both FMUs (the FE muscle on a small 4 x 1 mesh: the
 checks are the same code paths as on the default mesh, in a fraction of the
 time).
