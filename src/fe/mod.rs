@@ -3,7 +3,9 @@
 //! element response plus an average-nodal-pressure volumetric term).
 
 pub mod assembly;
+pub mod discretization;
 pub mod element;
 pub mod mesh;
 pub mod muscle;
 pub mod newton;
+pub mod tangent;

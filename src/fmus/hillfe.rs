@@ -32,8 +32,9 @@
 use std::sync::{Arc, OnceLock};
 
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
-use crate::fe::muscle::{Discretization, Ends, Evaluation, Muscle, Solution, MAX_SUBSTEPS};
-use crate::fe::newton::{
+use crate::fe::muscle::{Discretization, Ends, Evaluation, Muscle, MAX_SUBSTEPS};
+use crate::fe::newton::{Solution, RESIDUAL_TOLERANCE};
+use crate::fe::tangent::{
     Anchor, Contraction, Increment, TangentCache, Trend, CONTRACTION_STEPS, TREND_LENGTH,
 };
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
@@ -1353,7 +1354,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                         length,
                         tangent,
                         trend,
-                        tolerance: crate::fe::muscle::RESIDUAL_TOLERANCE,
+                        tolerance: RESIDUAL_TOLERANCE,
                     },
                     level: StepLevel::new(
                         dynamics,
@@ -1377,7 +1378,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                 length,
                 tangent,
                 trend,
-                tolerance: crate::fe::muscle::RESIDUAL_TOLERANCE,
+                tolerance: RESIDUAL_TOLERANCE,
             });
             m.last = Some(LastStep {
                 start,
@@ -1602,20 +1603,7 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
 }
 
 /// The model, for the FMU's `documentation/index.html`.
-pub const FE_HTML: &str = r#"<h2>The finite-element muscle</h2>
-<p>The paper's fusiform specimen (length L0, circular sections with radius r(x) = r_end + (r_mid &minus; r_end) sin(&pi; x / L0),
-diameters 0.9 cm at the ends and 1.75 cm at the middle for L0 = 5 cm, scaled so that V0/L0 = <code>area</code>), meshed with
-4-node tetrahedra (<code>n_axial</code> layers, <code>n_radial</code> rings). The isochoric part of the law acts per element;
-the volumetric penalty acts on nodal volumes (average nodal pressure, Bonet &amp; Burton 1998), which keeps the nearly
-incompressible tetrahedron from locking. One end face fixed; every node of the other moved along the axis to
-<code>length</code>; quasi-static equilibrium each step by Newton's method with the consistent tangent (sparse Cholesky,
-LU when indefinite), a line search and automatic substepping; a step that still fails returns fmi2Discard with the
-instance unchanged.</p>
-<p><code>force</code> is the axial reaction on the moved face; <code>stress</code> = force / area. Directional derivatives
-of every output with respect to both inputs are those of the last step's map: from the converged tangent (force and
-stress exactly; the other outputs evaluated along the equilibrium's sensitivities), or for a step cut into substeps by
-central differences of its map.</p>
-"#;
+pub const FE_HTML: &str = include_str!("doc/hillfe.html");
 
 #[cfg(test)]
 mod tests {
