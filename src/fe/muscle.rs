@@ -26,7 +26,7 @@ use crate::fe::tangent::{Anchor, Increment, TangentCache, Trend};
 use crate::law::force_length::force_length;
 use crate::law::hill_fibre::backward_euler_error;
 use crate::law::{FibreHistory, FibreRate, Params};
-use crate::step_control::MAX_CONTROLLED_TRIES;
+use crate::step_control::{self, MAX_CONTROLLED_TRIES};
 
 /// Largest number of substeps a step is split into before it is refused.
 pub const MAX_SUBSTEPS: usize = 64;
@@ -452,6 +452,11 @@ impl Muscle {
 /// over h 2⁻⁴⁰ it would be ~100/h and pollute the next piece's estimate.
 pub const FINEST_PIECE: f64 = 1.0 / (1u64 << 20) as f64;
 
+/// The most a rejected piece is shortened by at once (and by how much when
+/// its estimate is not finite): the FE muscle's floor of the reduction of
+/// [`crate::step_control`].
+pub const REDUCTION_FLOOR: f64 = 0.25;
+
 impl Muscle {
     /// The CE rates λ̇m per element of a committed (sub)step that started
     /// from `start` and took `h` (0 for an isometric one): the rates the
@@ -517,13 +522,14 @@ impl Muscle {
 
     /// The step of [`Self::advance`] in pieces whose estimated local error
     /// of the CE–SEE update ([`Self::piece_error`]) stays below `tolerance`
-    /// (SEE stress, Pa), as the 1D model's substeps do: the whole step
-    /// first; a rejected piece is tried again shorter, by the factor
-    /// 0.9 √(tolerance/error) (backward Euler's local error is second order
-    /// in its length) within [1/4, 0.9]; after an accepted piece the next is
-    /// up to 4× longer. A piece of [`FINEST_PIECE`] h is accepted whatever
-    /// its estimate, and after [`MAX_CONTROLLED_TRIES`] tries the rest of the
-    /// step is one piece. Each piece is [`Self::advance`] over its part of
+    /// (SEE stress, Pa), by the policy of [`crate::step_control`]: the whole
+    /// step first; a rejected piece is tried again shorter by
+    /// [`step_control::reduction`], but by no less than [`REDUCTION_FLOOR`];
+    /// after an accepted piece the next may grow by [`step_control::growth`].
+    /// The pieces are placed continuously in the step. A piece of
+    /// [`FINEST_PIECE`] h is accepted whatever its estimate, and after
+    /// [`MAX_CONTROLLED_TRIES`] tries the rest of the step is one piece.
+    /// Each piece is [`Self::advance`] over its part of
     /// the step (length linear in time, the level `activation(τ)`), with
     /// its own substeps when Newton needs them. `rates`: the CE rates at
     /// the step's start ([`Self::ce_rates`] of the last step). `Err` when a
@@ -563,16 +569,11 @@ impl Muscle {
             let levels = (activation(start), activation(end));
             let (err, end_rates) = m.piece_error(p, &piece, &rates, levels);
             let finest = piece_h <= FINEST_PIECE * h * (1.0 + 1e-9);
-            if err <= tolerance || finest || last_try {
+            if step_control::accepted(err, tolerance) || finest || last_try {
                 substeps += piece.substeps;
                 pieces.push((end, piece.substeps));
                 rates = end_rates;
-                let grow = if err > 0.0 {
-                    (0.9 * (tolerance / err).sqrt()).min(4.0)
-                } else {
-                    4.0
-                };
-                hs = (piece_h * grow).max(FINEST_PIECE * h);
+                hs = (piece_h * step_control::growth(err, tolerance)).max(FINEST_PIECE * h);
                 tau = end;
                 if end == h {
                     return Ok(Advance {
@@ -586,11 +587,8 @@ impl Muscle {
                 }
                 accepted = Some(piece.muscle);
             } else {
-                let shrink = if err.is_finite() {
-                    (0.9 * (tolerance / err).sqrt()).clamp(0.25, 0.9)
-                } else {
-                    0.25
-                };
+                let shrink = step_control::reduction(err, tolerance)
+                    .map_or(REDUCTION_FLOOR, |r| r.max(REDUCTION_FLOOR));
                 hs = (piece_h * shrink).max(FINEST_PIECE * h);
             }
         }
