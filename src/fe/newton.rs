@@ -13,7 +13,7 @@
 //! the step's inputs), for a [`StepInput`] within a [`Budget`].
 //!
 //! Invariants: the result is an equilibrium to [`StepInput::tolerance`] of
-//! the specimen's size and force scale ([`Discretization::converged`]), or
+//! the specimen's size and force scale (`Discretization::converged`), or
 //! `Err`; a step's work is bounded by its [`Budget`] (counted, not timed, so
 //! the outcome is deterministic); what an iteration does depends only on
 //! (x, the anchor, the inputs).
@@ -39,9 +39,11 @@
 //! same reused tangent ([`Contraction`]): at most [`CONTRACTION_STEPS`]
 //! steps old, at most [`REFRESH_CONTRACTION`], and doubled (the reused
 //! tangent drifts slowly between steps). x₁ is then accepted when its
-//! estimated error θ/(1 − θ)·Δx₀ is within the tolerance. (Accepting x₀ by
-//! Δx₀/(1 − θ) instead leaves errors near the tolerance in the increments
-//! the predictor extrapolates, whose corrections then grow past it.)
+//! estimated error θ/(1 − θ)·Δx₀ is within the tolerance; every
+//! [`CONTRACTION_STEPS`]-th step at the latest measures θ again. (Accepting
+//! x₀ by Δx₀/(1 − θ) instead leaves errors near the tolerance in the
+//! increments the predictor extrapolates, whose corrections then grow past
+//! it.)
 //!
 //! # Pressures
 //!
@@ -59,12 +61,12 @@
 //! fallback: on ordinary small steps the displacement iteration converges
 //! as fast or faster. The equilibrium is the same (at convergence
 //! p = U_J'(J) to the tolerance).
+//!
+//! [`CONTRACTION_STEPS`]: crate::fe::tangent::CONTRACTION_STEPS
 
 use std::sync::Arc;
 
 use crate::fe::discretization::{Discretization, Evaluation};
-#[cfg(doc)]
-use crate::fe::tangent::CONTRACTION_STEPS;
 use crate::fe::tangent::{Anchor, Contraction, Tangent, TangentCache, Trend, REFRESH_CONTRACTION};
 use crate::law::{FibreHistory, FibreRate, Params};
 
