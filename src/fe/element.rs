@@ -1,5 +1,5 @@
 //! The linear tetrahedron with an average-nodal-pressure volumetric term
-//! (Bonet & Burton 1998), the locking-free element of the FE muscle (issue 3).
+//! (Bonet & Burton 1998), the locking-free element of the FE muscle.
 //!
 //! The strain energy of the mesh is split as the law is (MODEL_NOTES "Energy
 //! and stress"):

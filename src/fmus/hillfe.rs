@@ -1,7 +1,8 @@
 //! `HillMuscleFE`: the lumped 3D finite-element muscle as an FMI 2.0
-//! Co-Simulation model (issue 3): the paper's fusiform specimen
-//! ([`crate::fe::muscle`]), same inputs and outputs as `HillMuscle1D` plus
-//! field diagnostics.
+//! Co-Simulation model: the paper's fusiform specimen ([`crate::fe`]), same
+//! inputs and outputs as `HillMuscle1D` plus field diagnostics. This module
+//! maps the FMI variables, calls and state to the FE muscle's step map
+//! ([`crate::fe::step_map`]).
 //!
 //! Each step, with the conventions of MODEL_NOTES "Co-simulation
 //! conventions":
@@ -20,20 +21,19 @@
 //! mean section, the same default `area` as `HillMuscle1D`). The mesh
 //! (`n_axial` × `n_radial`, [`crate::fe::mesh`]) is built at initialization.
 //!
-//! Outputs (volume averages use the elements' reference volumes):
-//! `force` the axial reaction on the moved face; `stress` = force / area;
-//! `cauchy_stress` = force · length / v (v the current volume: by
-//! equilibrium, the volume average of σ_xx); `fibre_stretch`, `ce_stretch`,
-//! `see_stretch`, `active_stress` (σ_s) volume averages; `passive_stress` =
-//! stress − active_stress; `volume_ratio_min`/`max` over the elements' J;
-//! `max_fibre_stretch`; `newton_iterations` of the last step (all substeps;
-//! after initialization, of its converged stages).
+//! The outputs are the FE muscle's [`Quantity`] values, in table order.
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
+use crate::fe::discretization::Discretization;
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
-use crate::fe::muscle::{Discretization, Ends, Evaluation, Muscle, Solution, MAX_SUBSTEPS};
-use crate::fe::newton::{
+use crate::fe::muscle::{Muscle, MAX_SUBSTEPS};
+use crate::fe::newton::RESIDUAL_TOLERANCE;
+use crate::fe::step_map::{
+    built_with, discretization, rate_step, Committed, LastStep, Outputs, Quantity, StepLevel,
+    Stepped, Substepped, N_QUANTITIES,
+};
+use crate::fe::tangent::{
     Anchor, Contraction, Increment, TangentCache, Trend, CONTRACTION_STEPS, TREND_LENGTH,
 };
 use crate::fmi2::bytes::{ByteReader, ByteWriter};
@@ -45,7 +45,7 @@ use crate::fmus::common::{
     check_range, check_restored_drive, check_restored_history, check_unit_interval, input,
     parameter, real, substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
 };
-use crate::law::activation::{level_at, Decay};
+use crate::law::activation::Decay;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{FibreHistory, FibreRate, ParamId, Params, PARAMETERS};
@@ -111,7 +111,7 @@ pub enum Output {
     MaxFibreStretch,
 }
 
-const OUTPUTS: [(Output, &str, &str, &str); 12] = [
+const OUTPUTS: [(Output, &str, &str, &str); N_QUANTITIES] = [
     (
         Output::Force,
         "force",
@@ -185,188 +185,30 @@ const OUTPUTS: [(Output, &str, &str, &str); 12] = [
         "1",
     ),
 ];
-const N_OUT: usize = OUTPUTS.len();
-
-/// What the last step's tangent was formed with (for the directional
-/// derivatives, recomputed on demand from the committed positions).
-#[derive(Clone, Debug, PartialEq)]
-struct LastStep {
-    /// Element histories at the start of the last (sub)step.
-    start: Vec<FibreHistory>,
-    /// `None`: isometric (initialization).
-    h: Option<f64>,
-    /// Activation level at its end.
-    activation: f64,
-    /// ∂(level)/∂(command).
-    da_du: f64,
+impl Output {
+    /// The FE muscle's quantity this output reads.
+    fn quantity(self) -> Quantity {
+        match self {
+            Output::Force => Quantity::Force,
+            Output::Stress => Quantity::Stress,
+            Output::CauchyStress => Quantity::CauchyStress,
+            Output::ActivationLevel => Quantity::ActivationLevel,
+            Output::FibreStretch => Quantity::FibreStretch,
+            Output::CeStretch => Quantity::CeStretch,
+            Output::SeeStretch => Quantity::SeeStretch,
+            Output::ActiveStress => Quantity::ActiveStress,
+            Output::PassiveStress => Quantity::PassiveStress,
+            Output::VolumeRatioMin => Quantity::VolumeRatioMin,
+            Output::VolumeRatioMax => Quantity::VolumeRatioMax,
+            Output::MaxFibreStretch => Quantity::MaxFibreStretch,
+        }
+    }
 }
 
 /// Both gradings in their declared range, the message naming the parameter.
 fn check_grading(g: Grading) -> Result<(), ModelError> {
     check_range("axial_grading", g.axial, GRADING_RANGE)?;
     check_range("radial_grading", g.radial, GRADING_RANGE)
-}
-
-/// The fusiform discretization for these geometry and mesh parameters
-/// (`reuse` when it is that one already).
-fn fe_discretization(
-    reuse: Option<&Arc<Discretization>>,
-    l0: f64,
-    area: f64,
-    resolution: Resolution,
-    grading: Grading,
-    fibres: FibreLayout,
-) -> Result<Arc<Discretization>, ModelError> {
-    if let Some(d) = reuse.filter(|d| built_with(d, l0, area, resolution, grading, fibres)) {
-        return Ok(d.clone());
-    }
-    Discretization::fusiform_graded(l0, area, resolution, grading, fibres, Ends::Clamped)
-        .map(Arc::new)
-        .map_err(ModelError)
-}
-
-/// Whether `d` is the discretization of this geometry, mesh and fibre
-/// layout.
-fn built_with(
-    d: &Discretization,
-    l0: f64,
-    area: f64,
-    resolution: Resolution,
-    grading: Grading,
-    fibres: FibreLayout,
-) -> bool {
-    d.l0 == l0
-        && d.area == area
-        && d.mesh.resolution == resolution
-        && d.mesh.grading == grading
-        && d.fibres == fibres
-}
-
-/// The step length of a rate mode (`None`: isometric).
-fn rate_step(rate: FibreRate) -> Option<f64> {
-    match rate {
-        FibreRate::Step { h } => Some(h),
-        FibreRate::Isometric => None,
-    }
-}
-
-impl LastStep {
-    fn rate(&self) -> FibreRate {
-        match self.h {
-            Some(h) => FibreRate::Step { h },
-            None => FibreRate::Isometric,
-        }
-    }
-}
-
-/// The activation level over one step of length `h` (MODEL_NOTES
-/// "Activation"): from level `a0` under the command `u` with rate `u_dot`,
-/// with or without the dynamics ([`level_at`], which `HillMuscle1D` reads
-/// too), at its end and at every τ into it (for substeps).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct StepLevel {
-    dynamics: bool,
-    s: f64,
-    a0: f64,
-    u: f64,
-    u_dot: f64,
-    h: f64,
-    /// The level at the end of the step and ∂(it)/∂u.
-    end: f64,
-    d_end_du: f64,
-}
-
-impl StepLevel {
-    /// `decay` = e^(−S h) ([`Decay`]).
-    fn new(dynamics: bool, s: f64, a0: f64, u: f64, u_dot: f64, h: f64, decay: f64) -> StepLevel {
-        let (end, d_end_du) = level_at(dynamics, a0, u, u_dot, s, h, decay);
-        StepLevel {
-            dynamics,
-            s,
-            a0,
-            u,
-            u_dot,
-            h,
-            end,
-            d_end_du,
-        }
-    }
-
-    /// The level at τ ∈ [0, h] into the step.
-    fn at(&self, tau: f64) -> f64 {
-        if tau >= self.h {
-            return self.end;
-        }
-        let decay = if self.dynamics {
-            (-self.s * tau).exp()
-        } else {
-            1.0 // unused without the dynamics
-        };
-        level_at(
-            self.dynamics,
-            self.a0,
-            self.u,
-            self.u_dot,
-            self.s,
-            tau,
-            decay,
-        )
-        .0
-    }
-}
-
-/// A step that needed substeps (its Newton iteration did not converge in
-/// one): the muscle it started from and what it was asked. Its directional
-/// derivatives are those of the step map — the same number of substeps
-/// from `before` to the inputs — by central differences
-/// ([`HillFEModel::force_derivatives`]): the converged tangent of the last
-/// substep alone holds that substep's start history fixed, which depends
-/// on the step's inputs as well.
-#[derive(Clone, Debug)]
-struct Substepped {
-    before: Muscle,
-    level: StepLevel,
-    end_length: f64,
-    /// Its pieces ([`crate::fe::muscle::Advance::pieces`]).
-    pieces: Vec<(f64, usize)>,
-}
-
-/// Relative step of the central differences of a substepped step's map:
-/// of L0 for the length, absolute for the command (one-sided at the ends
-/// of [0, 1]). With the solver's tolerance of 1e-10 of the force scale
-/// ([`crate::fe::muscle::RESIDUAL_TOLERANCE`]) the rounding part of the
-/// difference is ~1e-10/1e-5 = 1e-5 of the derivative, its truncation part
-/// O(1e-10) relative.
-const STEP_MAP_DIFFERENCE: f64 = 1e-5;
-
-/// Step along the equilibrium's sensitivities (of L0 for the length,
-/// absolute for the level) of the central differences that give the
-/// outputs' derivatives of a step in one piece
-/// ([`HillFEModel::output_jacobian`]): the outputs are evaluated, not
-/// solved for, at x ± ε ∂x/∂(L, a), so the difference has no solver
-/// tolerance in it, only the rounding of outputs of order 1 (~1e-16/ε) and
-/// a truncation of O(ε²).
-const OUTPUT_DIRECTION_STEP: f64 = 1e-6;
-
-/// ∂(output)/∂(length, command) of every output ([`Output`] order).
-type OutputJacobian = [[f64; 2]; N_OUT];
-
-/// An [`OutputJacobian`] from differences: the length column
-/// (outputs longer − shorter) / span, the command column
-/// (outputs more − less) / span · `da_du` (the level's derivative with
-/// respect to the command where the differences were taken in the level).
-fn difference_columns(
-    length: (&[f64; N_OUT], &[f64; N_OUT], f64),
-    command: (&[f64; N_OUT], &[f64; N_OUT], f64),
-    da_du: f64,
-) -> OutputJacobian {
-    let ((longer, shorter, dl), (more, less, du)) = (length, command);
-    std::array::from_fn(|o| {
-        [
-            (longer[o] - shorter[o]) / dl,
-            (more[o] - less[o]) / du * da_du,
-        ]
-    })
 }
 
 /// The full `HillMuscleFE` (the scene `fmu_build/scenes/hill_muscle_fe.toml`).
@@ -397,20 +239,13 @@ pub struct HillFEModel<S: Scene> {
     length: Option<f64>,
     command_rate: f64,
     length_rate: f64,
-    // Committed state (`None` before the first initialization).
     activation_level: f64,
-    muscle: Option<Muscle>,
-    last: Option<LastStep>,
-    /// The last step, when it took substeps ([`Substepped`]).
-    substepped: Option<Substepped>,
+    /// The committed muscle (`None` before the first initialization).
+    state: Option<Committed>,
     decay: Option<Decay>,
-    outputs: [f64; N_OUT],
+    /// In [`Quantity`] order.
+    outputs: Outputs,
     newton_iterations: i32,
-    /// (dF/dL, dF/du) at the committed state (u the activation command),
-    /// computed on first request.
-    derivatives: OnceLock<Result<(f64, f64), String>>,
-    /// [`Self::output_jacobian`], computed on first request.
-    output_derivatives: OnceLock<Result<OutputJacobian, String>>,
 }
 
 impl<S: Scene> HillFEModel<S> {
@@ -445,8 +280,8 @@ impl<S: Scene> HillFEModel<S> {
             n_axial: self.n_axial as usize,
             n_radial: self.n_radial as usize,
         };
-        let reuse = self.muscle.as_ref().map(|m| &m.disc);
-        fe_discretization(
+        let reuse = self.state.as_ref().map(|c| &c.muscle.disc);
+        discretization(
             reuse,
             self.l0,
             self.area,
@@ -454,6 +289,7 @@ impl<S: Scene> HillFEModel<S> {
             self.grading,
             self.layout(),
         )
+        .map_err(ModelError)
     }
 
     fn check_stretch(&self, length: f64) -> Result<(), String> {
@@ -469,179 +305,19 @@ impl<S: Scene> HillFEModel<S> {
         }
     }
 
-    /// Outputs of a converged solution.
-    /// The outputs of an evaluation `ev` of `d` at muscle length `length`.
-    fn outputs_of(
-        &self,
-        d: &Discretization,
-        length: f64,
-        ev: &Evaluation,
-        activation: f64,
-    ) -> [f64; N_OUT] {
-        let force = d.reaction(&ev.forces);
-        let stress = force / self.area;
-        let (mut v, mut lf, mut lm, mut ls, mut ss) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        let (mut jmin, mut jmax, mut lfmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for (e, ve) in ev.elements.iter().zip(d.element_reference_volumes()) {
-            v += ve;
-            lf += ve * e.lambda_f;
-            lm += ve * e.history.lambda_m;
-            ls += ve * e.history.lambda_s;
-            ss += ve * e.sigma_see;
-            jmin = jmin.min(e.j_assumed);
-            jmax = jmax.max(e.j_assumed);
-            lfmax = lfmax.max(e.lambda_f);
-        }
-        let mut o = [0.0; N_OUT];
-        o[Output::Force as usize] = force;
-        o[Output::Stress as usize] = stress;
-        o[Output::CauchyStress as usize] = force * length / ev.volume;
-        o[Output::ActivationLevel as usize] = activation;
-        o[Output::FibreStretch as usize] = lf / v;
-        o[Output::CeStretch as usize] = lm / v;
-        o[Output::SeeStretch as usize] = ls / v;
-        o[Output::ActiveStress as usize] = ss / v;
-        o[Output::PassiveStress as usize] = stress - ss / v;
-        o[Output::VolumeRatioMin as usize] = jmin;
-        o[Output::VolumeRatioMax as usize] = jmax;
-        o[Output::MaxFibreStretch as usize] = lfmax;
-        o
+    /// Commit a step's (or the initialization's) result.
+    fn commit(&mut self, stepped: Stepped) {
+        self.outputs = stepped.outputs;
+        self.activation_level = stepped.state.last.activation;
+        self.newton_iterations = i32::try_from(stepped.iterations).unwrap_or(i32::MAX);
+        self.state = Some(stepped.state);
     }
 
-    fn commit(&mut self, muscle: Muscle, s: &Solution, last: LastStep, iterations: usize) {
-        self.outputs = self.outputs_of(&muscle.disc, muscle.length, &s.evaluation, last.activation);
-        self.activation_level = last.activation;
-        self.muscle = Some(muscle);
-        self.last = Some(last);
-        self.substepped = None;
-        self.newton_iterations = i32::try_from(iterations).unwrap_or(i32::MAX);
-        self.derivatives = OnceLock::new();
-        self.output_derivatives = OnceLock::new();
-    }
-
-    /// (dF/dL, dF/du) of the last step's map at the committed state (u the
-    /// activation command): from the converged tangent (one factorisation
-    /// and two solves, [`Discretization::force_derivatives`]; dF/du =
-    /// dF/da · ∂a/∂u), or for a step that took substeps by central
-    /// differences of its map ([`Substepped`], [`Self::output_jacobian`]).
-    fn force_derivatives(&self) -> Result<(f64, f64), ModelError> {
-        self.derivatives
-            .get_or_init(|| {
-                if self.substepped.is_some() {
-                    // The step map's differences give every output at once:
-                    // kept for the other outputs' derivatives.
-                    let jacobian = self.output_jacobian().map_err(|ModelError(m)| m)?;
-                    let force = jacobian[Output::Force as usize];
-                    return Ok((force[0], force[1]));
-                }
-                let (m, last) = match (&self.muscle, &self.last) {
-                    (Some(m), Some(l)) => (m, l),
-                    _ => return Err("the model is not initialized".into()),
-                };
-                let ev = m.disc.evaluate(
-                    &self.params,
-                    &m.x,
-                    last.activation,
-                    &last.start,
-                    last.rate(),
-                    true,
-                )?;
-                let (dl, da) = m.disc.force_derivatives(&ev)?;
-                Ok((dl, da * last.da_du))
-            })
-            .clone()
-            .map_err(ModelError)
-    }
-
-    /// The outputs' derivatives of a substepped step's map by central
-    /// differences ([`STEP_MAP_DIFFERENCE`]), each difference the step
-    /// taken again from the muscle before it in the same substeps.
-    fn step_map_jacobian(&self, step: &Substepped) -> Result<OutputJacobian, String> {
-        let l = step.level;
-        let decay = Decay::new(l.s, l.h).value;
-        let outputs = |length: f64, command: f64| -> Result<[f64; N_OUT], String> {
-            let level = StepLevel::new(l.dynamics, l.s, l.a0, command, l.u_dot, l.h, decay);
-            let adv = step.before.advance_pieces(
-                &self.params,
-                length,
-                l.h,
-                &|tau| level.at(tau),
-                &step.pieces,
-            )?;
-            Ok(self.outputs_of(
-                &adv.muscle.disc,
-                adv.muscle.length,
-                &adv.solution.evaluation,
-                level.end,
-            ))
-        };
-        let (length, u) = (step.end_length, step.level.u);
-        let dl = STEP_MAP_DIFFERENCE * self.l0;
-        let (longer, shorter) = (outputs(length + dl, u)?, outputs(length - dl, u)?);
-        let (lo, hi) = (
-            (u - STEP_MAP_DIFFERENCE).max(0.0),
-            (u + STEP_MAP_DIFFERENCE).min(1.0),
-        );
-        let (more, less) = (outputs(length, hi)?, outputs(length, lo)?);
-        Ok(difference_columns(
-            (&longer, &shorter, 2.0 * dl),
-            (&more, &less, hi - lo),
-            1.0,
-        ))
-    }
-
-    /// ∂(output)/∂(length, command) of the last step's map for every
-    /// output, on first request. A step in one piece: the equilibrium's
-    /// sensitivities ∂x/∂L, ∂x/∂a from the converged tangent (one
-    /// factorisation, two solves, [`Discretization::sensitivities`]), and
-    /// the outputs evaluated at x ± ε ∂x/∂L (length L ± ε) and
-    /// x ± ε ∂x/∂a (level a ± ε, one-sided at the ends of [0, 1]) with the
-    /// step's start history ([`OUTPUT_DIRECTION_STEP`]); ∂/∂u = ∂/∂a ·
-    /// ∂a/∂u. A substepped step: [`Self::step_map_jacobian`]. The
-    /// extremes over the elements (`volume_ratio_min`/`max`,
-    /// `max_fibre_stretch`) have the derivative of the element that is
-    /// extreme, where that does not change within ±ε.
-    fn output_jacobian(&self) -> Result<OutputJacobian, ModelError> {
-        self.output_derivatives
-            .get_or_init(|| {
-                if let Some(step) = &self.substepped {
-                    return self.step_map_jacobian(step);
-                }
-                let (m, last) = match (&self.muscle, &self.last) {
-                    (Some(m), Some(l)) => (m, l),
-                    _ => return Err("the model is not initialized".into()),
-                };
-                let (p, a) = (&self.params, last.activation);
-                let ev = m
-                    .disc
-                    .evaluate(p, &m.x, a, &last.start, last.rate(), true)?;
-                let factor = m
-                    .disc
-                    .pattern
-                    .factorize(ev.tangent.as_ref().ok_or("no tangent")?)?;
-                let (dx_dl, dx_da, _) = m.disc.sensitivities(&ev, &factor);
-                let at = |dx: &[f64], e: f64, dl: f64, da: f64| -> Result<[f64; N_OUT], String> {
-                    let x: Vec<f64> = m.x.iter().zip(dx).map(|(x, d)| x + e * d).collect();
-                    let ev = m
-                        .disc
-                        .evaluate(p, &x, a + da, &last.start, last.rate(), false)?;
-                    Ok(self.outputs_of(&m.disc, m.length + dl, &ev, a + da))
-                };
-                let el = OUTPUT_DIRECTION_STEP * self.l0;
-                let (longer, shorter) = (at(&dx_dl, el, el, 0.0)?, at(&dx_dl, -el, -el, 0.0)?);
-                let (up, down) = (
-                    OUTPUT_DIRECTION_STEP.min(1.0 - a),
-                    OUTPUT_DIRECTION_STEP.min(a),
-                );
-                let (more, less) = (at(&dx_da, up, 0.0, up)?, at(&dx_da, -down, 0.0, -down)?);
-                Ok(difference_columns(
-                    (&longer, &shorter, 2.0 * el),
-                    (&more, &less, up + down),
-                    last.da_du,
-                ))
-            })
-            .clone()
-            .map_err(ModelError)
+    /// The committed muscle, or the error of a call that needs one.
+    fn committed(&self) -> Result<&Committed, ModelError> {
+        self.state
+            .as_ref()
+            .ok_or_else(|| ModelError("the model is not initialized".into()))
     }
 }
 
@@ -678,14 +354,10 @@ impl<S: Scene> Model for HillFEModel<S> {
             command_rate: 0.0,
             length_rate: 0.0,
             activation_level: 0.0,
-            muscle: None,
-            last: None,
-            substepped: None,
+            state: None,
             decay: None,
-            outputs: [0.0; N_OUT],
+            outputs: [0.0; N_QUANTITIES],
             newton_iterations: 0,
-            derivatives: OnceLock::new(),
-            output_derivatives: OnceLock::new(),
         };
         // The scene's start values and constants (checked when the scene was
         // resolved; the setters check them again).
@@ -715,7 +387,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             Var::RadialGrading => self.grading.radial,
             Var::Activation => self.command,
             Var::Length => self.length(),
-            Var::Out(o) => self.outputs[o as usize],
+            Var::Out(o) => self.outputs[o.quantity() as usize],
             _ => f64::NAN,
         }
     }
@@ -854,22 +526,16 @@ impl<S: Scene> Model for HillFEModel<S> {
         let length = self.length();
         self.check_stretch(length).map_err(ModelError)?;
         let disc = self.discretization()?;
-        let (muscle, s) = Muscle::isometric(disc.clone(), &self.params, length, a)
+        let stepped = Committed::initialize(disc, &self.params, self.area, length, a, da_du)
             .map_err(|e| ModelError(format!("initialization: {e}")))?;
-        let last = LastStep {
-            start: vec![FibreHistory::REST; disc.n_elements()],
-            h: None,
-            activation: a,
-            da_du,
-        };
-        self.commit(muscle, &s, last, s.iterations);
+        self.commit(stepped);
         self.decay = None;
         Ok(())
     }
 
     fn do_step(&mut self, _t: f64, h: f64) -> Result<(), StepError> {
-        let muscle = self
-            .muscle
+        let state = self
+            .state
             .as_ref()
             .ok_or_else(|| StepError::Error("the model is not initialized".into()))?;
         let end_length = self.length() + h * self.length_rate;
@@ -889,48 +555,11 @@ impl<S: Scene> Model for HillFEModel<S> {
             h,
             decay.value,
         );
-        let (a_end, da_du) = (level.end, level.d_end_du);
-        let activation = |tau| level.at(tau);
-        let adv = if self.adaptive_substeps {
-            let last = self
-                .last
-                .as_ref()
-                .ok_or_else(|| StepError::Error("the model is not initialized".into()))?;
-            let rates = muscle.ce_rates(&last.start, last.h);
-            let tolerance = self.substep_tolerance * self.params.sigma0;
-            muscle.advance_controlled(&self.params, end_length, h, &activation, tolerance, &rates)
-        } else {
-            muscle.advance(&self.params, end_length, h, &activation)
-        }
-        .map_err(|e| StepError::Discard(format!("length = {end_length} m: {e}")))?;
-        let substepped = (adv.substeps > 1).then(|| Substepped {
-            before: muscle.clone(),
-            level,
-            end_length,
-            pieces: adv.pieces.clone(),
-        });
-        let last = LastStep {
-            start: adv.start,
-            h: match adv.rate {
-                FibreRate::Step { h } => Some(h),
-                FibreRate::Isometric => None,
-            },
-            activation: a_end,
-            da_du,
-        };
-        let outputs = self.outputs_of(
-            &adv.muscle.disc,
-            adv.muscle.length,
-            &adv.solution.evaluation,
-            a_end,
-        );
-        if outputs.iter().any(|x| !x.is_finite()) {
-            return Err(StepError::Discard(format!(
-                "non-finite output at length {end_length} m"
-            )));
-        }
-        self.commit(adv.muscle, &adv.solution, last, adv.iterations);
-        self.substepped = substepped;
+        let tolerance = self.adaptive_substeps.then_some(self.substep_tolerance);
+        let stepped = state
+            .step(&self.params, self.area, level, end_length, tolerance)
+            .map_err(|e| StepError::Discard(e.to_string()))?;
+        self.commit(stepped);
         self.decay = Some(decay);
         self.command_rate = 0.0;
         self.length_rate = 0.0;
@@ -939,8 +568,8 @@ impl<S: Scene> Model for HillFEModel<S> {
 
     /// Partial derivatives of every output with respect to both inputs:
     /// those of the last step's map; of `force` and `stress` from
-    /// [`Self::force_derivatives`], of `activation_level` exactly, of the
-    /// others from [`Self::output_jacobian`].
+    /// [`Committed::force_derivatives`], of `activation_level` exactly, of
+    /// the others from [`Committed::output_jacobian`].
     fn partial_derivative(&self, unknown: Var, known: Var) -> Result<f64, ModelError> {
         let by_length = match known {
             Var::Length => true,
@@ -951,15 +580,25 @@ impl<S: Scene> Model for HillFEModel<S> {
                 ))
             }
         };
-        let da_du = self.last.as_ref().map_or(0.0, |l| l.da_du);
+        let da_du = self.state.as_ref().map_or(0.0, |c| c.last.da_du);
+        let (p, l0, area) = (&self.params, self.l0, self.area);
         match unknown {
             Var::Out(Output::ActivationLevel) => Ok(if by_length { 0.0 } else { da_du }),
             Var::Out(o @ (Output::Force | Output::Stress)) => {
-                let (dl, du) = self.force_derivatives()?;
+                let (dl, du) = self
+                    .committed()?
+                    .force_derivatives(p, l0, area)
+                    .map_err(ModelError)?;
                 let d = if by_length { dl } else { du };
                 Ok(if o == Output::Force { d } else { d / self.area })
             }
-            Var::Out(o) => Ok(self.output_jacobian()?[o as usize][usize::from(!by_length)]),
+            Var::Out(o) => {
+                let jacobian = self
+                    .committed()?
+                    .output_jacobian(p, l0, area)
+                    .map_err(ModelError)?;
+                Ok(jacobian[o.quantity() as usize][usize::from(!by_length)])
+            }
             _ => Err(ModelError(
                 "directional derivatives are provided for the outputs".into(),
             )),
@@ -971,20 +610,19 @@ impl<S: Scene> Model for HillFEModel<S> {
     /// in which they differ from the muscle's was not written by
     /// [`Model::serialize`] of a stepping instance.
     fn is_initialized(&self) -> bool {
-        self.last.is_some()
-            && self.muscle.as_ref().is_some_and(|m| {
-                built_with(
-                    &m.disc,
-                    self.l0,
-                    self.area,
-                    Resolution {
-                        n_axial: self.n_axial as usize,
-                        n_radial: self.n_radial as usize,
-                    },
-                    self.grading,
-                    self.layout(),
-                )
-            })
+        self.state.as_ref().is_some_and(|c| {
+            built_with(
+                &c.muscle.disc,
+                self.l0,
+                self.area,
+                Resolution {
+                    n_axial: self.n_axial as usize,
+                    n_radial: self.n_radial as usize,
+                },
+                self.grading,
+                self.layout(),
+            )
+        })
     }
 
     fn serialize(&self, out: &mut Vec<u8>) {
@@ -1013,8 +651,9 @@ impl<S: Scene> Model for HillFEModel<S> {
             .f64s(self.decay.map(|d| d.h).as_slice())
             .f64s(&self.outputs)
             .i32(self.newton_iterations);
-        match (&self.muscle, &self.last) {
-            (Some(m), Some(l)) => {
+        match &self.state {
+            Some(c) => {
+                let (m, l) = (&c.muscle, &c.last);
                 let hist = |h: &[FibreHistory]| -> Vec<f64> {
                     h.iter().flat_map(|x| [x.lambda_s, x.lambda_m]).collect()
                 };
@@ -1074,7 +713,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                 solver(&mut w, m);
                 // A substepped last step: the muscle before it and its
                 // inputs (its directional derivatives take it again).
-                match &self.substepped {
+                match &c.substepped {
                     Some(st) => {
                         let (b, l) = (&st.before, &st.level);
                         w.bool(true)
@@ -1099,7 +738,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                     }
                 }
             }
-            _ => {
+            None => {
                 w.bool(false);
             }
         }
@@ -1126,14 +765,10 @@ impl<S: Scene> Model for HillFEModel<S> {
             command_rate: 0.0,
             length_rate: 0.0,
             activation_level: 0.0,
-            muscle: None,
-            last: None,
-            substepped: None,
+            state: None,
             decay: None,
-            outputs: [0.0; N_OUT],
+            outputs: [0.0; N_QUANTITIES],
             newton_iterations: 0,
-            derivatives: OnceLock::new(),
-            output_derivatives: OnceLock::new(),
         };
         let params = r.f64s()?;
         if params.len() != PARAMETERS.len() {
@@ -1176,7 +811,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             other => return Err(bad(format!("bad activation decay step {other:?}"))),
         };
         let outputs = r.f64s()?;
-        if outputs.len() != N_OUT {
+        if outputs.len() != N_QUANTITIES {
             return Err(bad(format!("{} outputs", outputs.len())));
         }
         m.outputs.copy_from_slice(&outputs);
@@ -1207,7 +842,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                     "bad mesh {n_axial} x {n_radial}, fibre layout {layout}"
                 )));
             }
-            let disc = fe_discretization(
+            let disc = discretization(
                 None,
                 l0,
                 area,
@@ -1221,7 +856,8 @@ impl<S: Scene> Model for HillFEModel<S> {
                 } else {
                     FibreLayout::Axial
                 },
-            )?;
+            )
+            .map_err(ModelError)?;
             let pairs = |v: Vec<f64>| -> Result<Vec<FibreHistory>, ModelError> {
                 if v.len() != 2 * disc.n_elements() || v.iter().any(|x| !x.is_finite()) {
                     return Err(bad(format!("{} history values", v.len())));
@@ -1353,7 +989,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                         length,
                         tangent,
                         trend,
-                        tolerance: crate::fe::muscle::RESIDUAL_TOLERANCE,
+                        tolerance: RESIDUAL_TOLERANCE,
                     },
                     level: StepLevel::new(
                         dynamics,
@@ -1370,22 +1006,22 @@ impl<S: Scene> Model for HillFEModel<S> {
             } else {
                 None
             };
-            m.muscle = Some(Muscle {
+            let muscle = Muscle {
                 disc,
                 x,
                 history,
                 length,
                 tangent,
                 trend,
-                tolerance: crate::fe::muscle::RESIDUAL_TOLERANCE,
-            });
-            m.last = Some(LastStep {
+                tolerance: RESIDUAL_TOLERANCE,
+            };
+            let last = LastStep {
                 start,
                 h,
                 activation,
                 da_du,
-            });
-            m.substepped = substepped;
+            };
+            m.state = Some(Committed::new(muscle, last, substepped));
         }
         Ok(m)
     }
@@ -1602,25 +1238,27 @@ pub fn all_variables() -> Vec<ScalarVariable<Var>> {
 }
 
 /// The model, for the FMU's `documentation/index.html`.
-pub const FE_HTML: &str = r#"<h2>The finite-element muscle</h2>
-<p>The paper's fusiform specimen (length L0, circular sections with radius r(x) = r_end + (r_mid &minus; r_end) sin(&pi; x / L0),
-diameters 0.9 cm at the ends and 1.75 cm at the middle for L0 = 5 cm, scaled so that V0/L0 = <code>area</code>), meshed with
-4-node tetrahedra (<code>n_axial</code> layers, <code>n_radial</code> rings). The isochoric part of the law acts per element;
-the volumetric penalty acts on nodal volumes (average nodal pressure, Bonet &amp; Burton 1998), which keeps the nearly
-incompressible tetrahedron from locking. One end face fixed; every node of the other moved along the axis to
-<code>length</code>; quasi-static equilibrium each step by Newton's method with the consistent tangent (sparse Cholesky,
-LU when indefinite), a line search and automatic substepping; a step that still fails returns fmi2Discard with the
-instance unchanged.</p>
-<p><code>force</code> is the axial reaction on the moved face; <code>stress</code> = force / area. Directional derivatives
-of every output with respect to both inputs are those of the last step's map: from the converged tangent (force and
-stress exactly; the other outputs evaluated along the equilibrium's sensitivities), or for a step cut into substeps by
-central differences of its map.</p>
-"#;
+pub const FE_HTML: &str = include_str!("doc/hillfe.html");
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fe::step_map::outputs;
     use crate::fmus::common::{assert_restore_refuses, restored};
+
+    /// The last step's map when it took substeps.
+    fn substepped(m: &HillFE) -> Option<&Substepped> {
+        m.state.as_ref().and_then(|c| c.substepped.as_ref())
+    }
+
+    /// The output table lists the FE muscle's quantities in their order:
+    /// the serialized outputs are in that order.
+    #[test]
+    fn the_output_table_is_in_the_order_of_the_fe_quantities() {
+        for (i, &(o, ..)) in OUTPUTS.iter().enumerate() {
+            assert_eq!(o.quantity() as usize, i, "{o:?}");
+        }
+    }
 
     /// The scenes' mesh levels (src/scene, compiled without the FE code) are
     /// the FE module's: `lumped` the default mesh and its grading, `level0`
@@ -1689,29 +1327,30 @@ mod tests {
     /// The outputs at the end of the step map of `start` in the fixed
     /// pieces `pieces` (the map a substepped step's derivatives
     /// differentiate).
-    fn map_outputs(
-        start: &HillFE,
-        pieces: &[(f64, usize)],
-        l: f64,
-        u: f64,
-        h: f64,
-    ) -> [f64; N_OUT] {
+    fn map_outputs(start: &HillFE, pieces: &[(f64, usize)], l: f64, u: f64, h: f64) -> Outputs {
         let s = start.params.s;
         let a0 = start.activation_level;
         let level = StepLevel::new(true, s, a0, u, 0.0, h, Decay::new(s, h).value);
         let adv = start
-            .muscle
+            .state
             .as_ref()
             .unwrap()
+            .muscle
             .advance_pieces(&start.params, l, h, &|t| level.at(t), pieces)
             .unwrap();
         let m = &adv.muscle;
-        start.outputs_of(&m.disc, m.length, &adv.solution.evaluation, level.end)
+        outputs(
+            &m.disc,
+            start.area,
+            m.length,
+            &adv.solution.evaluation,
+            level.end,
+        )
     }
 
     /// The force of [`map_outputs`].
     fn map_force(start: &HillFE, pieces: &[(f64, usize)], l: f64, u: f64, h: f64) -> f64 {
-        map_outputs(start, pieces, l, u, h)[Output::Force as usize]
+        map_outputs(start, pieces, l, u, h)[Quantity::Force as usize]
     }
 
     /// A restored state is checked as strictly as the calls that produce
@@ -1729,12 +1368,12 @@ mod tests {
         assert_restore_refuses(&m, |f| f.activation_level = 4.0, "activation level = 4");
         assert_restore_refuses(
             &m,
-            |f| f.muscle.as_mut().unwrap().history[3].lambda_m = -1.0,
+            |f| f.state.as_mut().unwrap().muscle.history[3].lambda_m = -1.0,
             "fibre history 3: CE stretch -1",
         );
         assert_restore_refuses(
             &m,
-            |f| f.muscle.as_mut().unwrap().history[0].lambda_s = 0.0,
+            |f| f.state.as_mut().unwrap().muscle.history[0].lambda_s = 0.0,
             "and SEE stretch 0 must be finite and > 0",
         );
         assert_restore_refuses(&m, |f| f.length = Some(1e3), "length = 1000");
@@ -1793,7 +1432,7 @@ mod tests {
         let before = muscle(1.1, 0.3, true);
         let (l, u, h) = (1.12 * DEFAULT_L0, 0.6, 5e-3);
         let m = run(&before, l, u, h, 1);
-        let pieces = m.substepped.as_ref().unwrap().pieces.clone();
+        let pieces = substepped(&m).unwrap().pieces.clone();
         assert!(pieces.len() > 1, "{pieces:?}");
         // The map differentiated below is the step's own: replaying its
         // pieces gives the error-controlled step's force bit for bit.
@@ -1814,10 +1453,11 @@ mod tests {
 
         // The last piece's tangent alone (what the derivatives were
         // before): off by more than 1 % in the command.
-        let mut last_only = m.clone();
-        last_only.substepped = None;
-        last_only.derivatives = OnceLock::new();
-        let (_, d_u_last) = last_only.force_derivatives().unwrap();
+        let c = m.state.clone().unwrap();
+        let last_only = Committed::new(c.muscle, c.last, None);
+        let (_, d_u_last) = last_only
+            .force_derivatives(&m.params, m.l0, m.area)
+            .unwrap();
         assert!(
             ((d_u_last - fd_u) / fd_u).abs() > 1e-2,
             "the last piece's tangent {d_u_last} is as good as the map's {fd_u}: the test shows nothing"
@@ -1826,13 +1466,13 @@ mod tests {
         let mut bytes = Vec::new();
         m.serialize(&mut bytes);
         let restored = HillFE::deserialize(&mut bytes.as_slice()).unwrap();
-        assert!(restored.substepped.is_some());
+        assert!(substepped(&restored).is_some());
         let (r_l, r_u) = derivatives(&restored);
         assert_eq!(r_l.to_bits(), d_l.to_bits());
         assert_eq!(r_u.to_bits(), d_u.to_bits());
         let mut one_piece = m.clone();
         one_piece.set_boolean(Var::AdaptiveSubsteps, false).unwrap();
-        assert!(run(&one_piece, l, u, h, 1).substepped.is_none());
+        assert!(substepped(&run(&one_piece, l, u, h, 1)).is_none());
     }
 
     /// A fast length ramp of the active muscle in one step (L0 → 2 L0 in
@@ -1874,7 +1514,7 @@ mod tests {
         let adaptive = run(&start(), 2.0 * DEFAULT_L0, 1.0, h, 1);
         let active = |m: &HillFE| m.get_real(Var::Out(Output::ActiveStress));
         let error = (active(&adaptive) - active(&reference)).abs() / adaptive.params.sigma0;
-        let pieces = &adaptive.substepped.as_ref().unwrap().pieces;
+        let pieces = &substepped(&adaptive).unwrap().pieces;
         let shortest = pieces
             .iter()
             .scan(0.0, |t, &(end, _)| Some(end - std::mem::replace(t, end)))
@@ -1908,7 +1548,7 @@ mod tests {
             (force(&adaptive) - reference).abs() / scale,
             (coarse - reference).abs() / scale,
         );
-        let pieces = adaptive.substepped.as_ref().unwrap().pieces.clone();
+        let pieces = substepped(&adaptive).unwrap().pieces.clone();
         eprintln!(
             "{} pieces; force error / (sigma0 A): adaptive {e_adaptive:e}, one step {e_coarse:e}",
             pieces.len()
@@ -1942,13 +1582,13 @@ mod tests {
             let before = muscle(1.1, 0.3, adaptive);
             let (l, u, h) = (1.12 * DEFAULT_L0, 0.6, 5e-3);
             let m = run(&before, l, u, h, 1);
-            assert_eq!(m.substepped.is_some(), adaptive);
+            assert_eq!(substepped(&m).is_some(), adaptive);
             let richardson = |d: &dyn Fn(f64) -> f64, e: f64| (4.0 * d(e / 2.0) - d(e)) / 3.0;
-            let pieces = m.substepped.as_ref().map(|s| s.pieces.clone());
+            let pieces = substepped(&m).map(|s| s.pieces.clone());
             for &(o, name, _, _) in OUTPUTS.iter() {
                 let out = |l, u| match &pieces {
                     None => run(&before, l, u, h, 1).get_real(Var::Out(o)),
-                    Some(pieces) => map_outputs(&before, pieces, l, u, h)[o as usize],
+                    Some(pieces) => map_outputs(&before, pieces, l, u, h)[o.quantity() as usize],
                 };
                 let d = |known| m.partial_derivative(Var::Out(o), known).unwrap();
                 let (d_l, d_u) = (d(Var::Length), d(Var::Activation));
@@ -1992,7 +1632,7 @@ mod tests {
         let (l, h) = (1.05 * DEFAULT_L0, 0.02);
         let reference = force(&run(&start(false), l, 1.0, h / 200.0, 200));
         let adaptive = run(&start(true), l, 1.0, h, 1);
-        let pieces = adaptive.substepped.as_ref().unwrap().pieces.len();
+        let pieces = substepped(&adaptive).unwrap().pieces.len();
         let error = (force(&adaptive) - reference).abs() / (adaptive.params.sigma0 * adaptive.area);
         eprintln!("{pieces} pieces; force error / (sigma0 A) {error:e}");
         assert!(pieces > 1, "the step was not cut: the test shows nothing");

@@ -1,0 +1,537 @@
+//! The FE muscle's step map and its sensitivities: one communication step
+//! from the committed state to the inputs (the muscle length at the end of
+//! the step, the activation level over it, [`StepLevel`]), the outputs of
+//! the result ([`Quantity`], [`outputs`]) and their derivatives with
+//! respect to the two inputs.
+//!
+//! Entry points: [`discretization`] (the fusiform specimen, reused when
+//! unchanged), [`Committed::initialize`], [`Committed::step`],
+//! [`Committed::force_derivatives`], [`Committed::output_jacobian`].
+//!
+//! Invariants: a step that fails returns [`StepFailure`] and changes
+//! nothing. The derivatives are those of the map that produced the
+//! committed state: from the converged tangent for a step in one piece, by
+//! central differences of the same pieces from the same start for a step
+//! in more ([`Substepped`]); computed on first request, then kept.
+
+use std::fmt;
+use std::sync::{Arc, OnceLock};
+
+use crate::fe::discretization::{Discretization, Ends, Evaluation};
+use crate::fe::mesh::{FibreLayout, Grading, Resolution};
+use crate::fe::muscle::Muscle;
+use crate::law::activation::{level_at, Decay};
+use crate::law::{FibreHistory, FibreRate, Params};
+
+/// The FE muscle's outputs, in the fixed order of [`Outputs`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quantity {
+    /// Axial reaction on the moved face, tension positive.
+    Force,
+    /// Force / area.
+    Stress,
+    /// Force · length / v (v the current volume: by equilibrium, the volume
+    /// average of σ_xx).
+    CauchyStress,
+    ActivationLevel,
+    /// Volume averages (reference volumes) of the modified fibre stretch,
+    /// the CE and SEE stretches and the SEE stress σ_s.
+    FibreStretch,
+    CeStretch,
+    SeeStretch,
+    ActiveStress,
+    /// Stress − active stress.
+    PassiveStress,
+    /// Extremes over the elements of the constrained volume ratio
+    /// ([`crate::fe::discretization::ElementState::j_assumed`]).
+    VolumeRatioMin,
+    VolumeRatioMax,
+    /// Largest element modified fibre stretch.
+    MaxFibreStretch,
+}
+
+/// Number of [`Quantity`] values.
+pub const N_QUANTITIES: usize = 12;
+
+/// Every [`Quantity`], indexed by `Quantity as usize`.
+pub type Outputs = [f64; N_QUANTITIES];
+
+/// ∂(output)/∂(length, command) of every output ([`Quantity`] order).
+pub type OutputJacobian = [[f64; 2]; N_QUANTITIES];
+
+/// The outputs of an evaluation `ev` of `d` at muscle length `length` and
+/// activation level `activation`, stresses on the section `area`.
+pub fn outputs(
+    d: &Discretization,
+    area: f64,
+    length: f64,
+    ev: &Evaluation,
+    activation: f64,
+) -> Outputs {
+    let force = d.reaction(&ev.forces);
+    let stress = force / area;
+    let (mut v, mut lf, mut lm, mut ls, mut ss) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut jmin, mut jmax, mut lfmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for (e, ve) in ev.elements.iter().zip(d.element_reference_volumes()) {
+        v += ve;
+        lf += ve * e.lambda_f;
+        lm += ve * e.history.lambda_m;
+        ls += ve * e.history.lambda_s;
+        ss += ve * e.sigma_see;
+        jmin = jmin.min(e.j_assumed);
+        jmax = jmax.max(e.j_assumed);
+        lfmax = lfmax.max(e.lambda_f);
+    }
+    let mut o = [0.0; N_QUANTITIES];
+    o[Quantity::Force as usize] = force;
+    o[Quantity::Stress as usize] = stress;
+    o[Quantity::CauchyStress as usize] = force * length / ev.volume;
+    o[Quantity::ActivationLevel as usize] = activation;
+    o[Quantity::FibreStretch as usize] = lf / v;
+    o[Quantity::CeStretch as usize] = lm / v;
+    o[Quantity::SeeStretch as usize] = ls / v;
+    o[Quantity::ActiveStress as usize] = ss / v;
+    o[Quantity::PassiveStress as usize] = stress - ss / v;
+    o[Quantity::VolumeRatioMin as usize] = jmin;
+    o[Quantity::VolumeRatioMax as usize] = jmax;
+    o[Quantity::MaxFibreStretch as usize] = lfmax;
+    o
+}
+
+/// The fusiform discretization, clamped, for these geometry and mesh
+/// parameters (`reuse` when it is that one already).
+pub fn discretization(
+    reuse: Option<&Arc<Discretization>>,
+    l0: f64,
+    area: f64,
+    resolution: Resolution,
+    grading: Grading,
+    fibres: FibreLayout,
+) -> Result<Arc<Discretization>, String> {
+    if let Some(d) = reuse.filter(|d| built_with(d, l0, area, resolution, grading, fibres)) {
+        return Ok(d.clone());
+    }
+    Discretization::fusiform_graded(l0, area, resolution, grading, fibres, Ends::Clamped)
+        .map(Arc::new)
+}
+
+/// Whether `d` is the discretization of this geometry, mesh and fibre
+/// layout.
+pub fn built_with(
+    d: &Discretization,
+    l0: f64,
+    area: f64,
+    resolution: Resolution,
+    grading: Grading,
+    fibres: FibreLayout,
+) -> bool {
+    d.l0 == l0
+        && d.area == area
+        && d.mesh.resolution == resolution
+        && d.mesh.grading == grading
+        && d.fibres == fibres
+}
+
+/// The step length of a rate mode (`None`: isometric).
+pub fn rate_step(rate: FibreRate) -> Option<f64> {
+    match rate {
+        FibreRate::Step { h } => Some(h),
+        FibreRate::Isometric => None,
+    }
+}
+
+/// What the last step's tangent was formed with (for the directional
+/// derivatives, recomputed on demand from the committed positions).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LastStep {
+    /// Element histories at the start of the last (sub)step.
+    pub start: Vec<FibreHistory>,
+    /// `None`: isometric (initialization).
+    pub h: Option<f64>,
+    /// Activation level at its end.
+    pub activation: f64,
+    /// ∂(level)/∂(command).
+    pub da_du: f64,
+}
+
+impl LastStep {
+    pub fn rate(&self) -> FibreRate {
+        match self.h {
+            Some(h) => FibreRate::Step { h },
+            None => FibreRate::Isometric,
+        }
+    }
+}
+
+/// The activation level over one step of length `h` (MODEL_NOTES
+/// "Activation"): from level `a0` under the command `u` with rate `u_dot`,
+/// with or without the dynamics ([`level_at`], which the 1D muscle reads
+/// too), at its end and at every τ into it (for substeps).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepLevel {
+    pub dynamics: bool,
+    pub s: f64,
+    pub a0: f64,
+    pub u: f64,
+    pub u_dot: f64,
+    pub h: f64,
+    /// The level at the end of the step and ∂(it)/∂u.
+    pub end: f64,
+    pub d_end_du: f64,
+}
+
+impl StepLevel {
+    /// `decay` = e^(−S h) ([`Decay`]).
+    pub fn new(
+        dynamics: bool,
+        s: f64,
+        a0: f64,
+        u: f64,
+        u_dot: f64,
+        h: f64,
+        decay: f64,
+    ) -> StepLevel {
+        let (end, d_end_du) = level_at(dynamics, a0, u, u_dot, s, h, decay);
+        StepLevel {
+            dynamics,
+            s,
+            a0,
+            u,
+            u_dot,
+            h,
+            end,
+            d_end_du,
+        }
+    }
+
+    /// The level at τ ∈ [0, h] into the step.
+    pub fn at(&self, tau: f64) -> f64 {
+        if tau >= self.h {
+            return self.end;
+        }
+        let decay = if self.dynamics {
+            (-self.s * tau).exp()
+        } else {
+            1.0 // unused without the dynamics
+        };
+        level_at(
+            self.dynamics,
+            self.a0,
+            self.u,
+            self.u_dot,
+            self.s,
+            tau,
+            decay,
+        )
+        .0
+    }
+}
+
+/// A step that needed substeps (its Newton iteration did not converge in
+/// one, or its error was controlled): the muscle it started from and what
+/// it was asked. Its directional derivatives are those of the step map —
+/// the same pieces from `before` to the inputs — by central differences
+/// ([`Committed::output_jacobian`]): the converged tangent of the last
+/// substep alone holds that substep's start history fixed, which depends
+/// on the step's inputs as well.
+#[derive(Clone, Debug)]
+pub struct Substepped {
+    pub before: Muscle,
+    pub level: StepLevel,
+    pub end_length: f64,
+    /// Its pieces ([`crate::fe::muscle::Advance::pieces`]).
+    pub pieces: Vec<(f64, usize)>,
+}
+
+/// Relative step of the central differences of a substepped step's map:
+/// of L0 for the length, absolute for the command (one-sided at the ends
+/// of [0, 1]). With the solver's tolerance of 1e-10 of the force scale
+/// ([`crate::fe::newton::RESIDUAL_TOLERANCE`]) the rounding part of the
+/// difference is ~1e-10/1e-5 = 1e-5 of the derivative, its truncation part
+/// O(1e-10) relative.
+pub const STEP_MAP_DIFFERENCE: f64 = 1e-5;
+
+/// Step along the equilibrium's sensitivities (of L0 for the length,
+/// absolute for the level) of the central differences that give the
+/// outputs' derivatives of a step in one piece
+/// ([`Committed::output_jacobian`]): the outputs are evaluated, not
+/// solved for, at x ± ε ∂x/∂(L, a), so the difference has no solver
+/// tolerance in it, only the rounding of outputs of order 1 (~1e-16/ε) and
+/// a truncation of O(ε²).
+pub const OUTPUT_DIRECTION_STEP: f64 = 1e-6;
+
+/// An [`OutputJacobian`] from differences: the length column
+/// (outputs longer − shorter) / span, the command column
+/// (outputs more − less) / span · `da_du` (the level's derivative with
+/// respect to the command where the differences were taken in the level).
+fn difference_columns(
+    length: (&Outputs, &Outputs, f64),
+    command: (&Outputs, &Outputs, f64),
+    da_du: f64,
+) -> OutputJacobian {
+    let ((longer, shorter, dl), (more, less, du)) = (length, command);
+    std::array::from_fn(|o| {
+        [
+            (longer[o] - shorter[o]) / dl,
+            (more[o] - less[o]) / du * da_du,
+        ]
+    })
+}
+
+/// Why a step was refused (the committed state unchanged).
+#[derive(Clone, Debug, PartialEq)]
+pub enum StepFailure {
+    /// No sequence of substeps converged to `length`.
+    NotConverged { length: f64, reason: String },
+    /// The converged state has a non-finite output.
+    NonFiniteOutput { length: f64 },
+}
+
+impl fmt::Display for StepFailure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StepFailure::NotConverged { length, reason } => {
+                write!(f, "length = {length} m: {reason}")
+            }
+            StepFailure::NonFiniteOutput { length } => {
+                write!(f, "non-finite output at length {length} m")
+            }
+        }
+    }
+}
+
+/// The muscle's committed state with what its derivatives need: the last
+/// step's start and level, the step map when it took substeps, and the
+/// derivatives once computed.
+#[derive(Clone, Debug)]
+pub struct Committed {
+    pub muscle: Muscle,
+    pub last: LastStep,
+    /// The last step, when it took substeps ([`Substepped`]).
+    pub substepped: Option<Substepped>,
+    /// (dF/dL, dF/du) at the committed state (u the activation command).
+    derivatives: OnceLock<Result<(f64, f64), String>>,
+    /// [`Self::output_jacobian`].
+    output_derivatives: OnceLock<Result<OutputJacobian, String>>,
+}
+
+/// A committed state with its outputs and the Newton iterations that led
+/// to it.
+#[derive(Clone, Debug)]
+pub struct Stepped {
+    pub state: Committed,
+    pub outputs: Outputs,
+    pub iterations: usize,
+}
+
+impl Committed {
+    /// The state (its derivatives not computed yet).
+    pub fn new(muscle: Muscle, last: LastStep, substepped: Option<Substepped>) -> Committed {
+        Committed {
+            muscle,
+            last,
+            substepped,
+            derivatives: OnceLock::new(),
+            output_derivatives: OnceLock::new(),
+        }
+    }
+
+    /// The isometric equilibrium at `length` and activation level
+    /// `activation` ([`Muscle::isometric`]), `da_du` the level's derivative
+    /// with respect to the command; the iterations are the whole
+    /// initialization's.
+    pub fn initialize(
+        disc: Arc<Discretization>,
+        p: &Params,
+        area: f64,
+        length: f64,
+        activation: f64,
+        da_du: f64,
+    ) -> Result<Stepped, String> {
+        let n = disc.n_elements();
+        let (muscle, s) = Muscle::isometric(disc, p, length, activation)?;
+        let last = LastStep {
+            start: vec![FibreHistory::REST; n],
+            h: None,
+            activation,
+            da_du,
+        };
+        let outputs = outputs(&muscle.disc, area, muscle.length, &s.evaluation, activation);
+        Ok(Stepped {
+            state: Committed::new(muscle, last, None),
+            outputs,
+            iterations: s.iterations,
+        })
+    }
+
+    /// One step of length `level.h` to muscle length `end_length`, the
+    /// activation level following `level`: [`Muscle::advance`], or with
+    /// `substep_tolerance` (a fraction of σ0) [`Muscle::advance_controlled`]
+    /// from the CE rates of the last step.
+    pub fn step(
+        &self,
+        p: &Params,
+        area: f64,
+        level: StepLevel,
+        end_length: f64,
+        substep_tolerance: Option<f64>,
+    ) -> Result<Stepped, StepFailure> {
+        let (muscle, h) = (&self.muscle, level.h);
+        let activation = |tau| level.at(tau);
+        let adv = match substep_tolerance {
+            Some(fraction) => {
+                let rates = muscle.ce_rates(&self.last.start, self.last.h);
+                let tolerance = fraction * p.sigma0;
+                muscle.advance_controlled(p, end_length, h, &activation, tolerance, &rates)
+            }
+            None => muscle.advance(p, end_length, h, &activation),
+        }
+        .map_err(|reason| StepFailure::NotConverged {
+            length: end_length,
+            reason,
+        })?;
+        let substepped = (adv.substeps > 1).then(|| Substepped {
+            before: muscle.clone(),
+            level,
+            end_length,
+            pieces: adv.pieces.clone(),
+        });
+        let last = LastStep {
+            start: adv.start,
+            h: rate_step(adv.rate),
+            activation: level.end,
+            da_du: level.d_end_du,
+        };
+        let m = &adv.muscle;
+        let outputs = outputs(&m.disc, area, m.length, &adv.solution.evaluation, level.end);
+        if outputs.iter().any(|x| !x.is_finite()) {
+            return Err(StepFailure::NonFiniteOutput { length: end_length });
+        }
+        Ok(Stepped {
+            state: Committed::new(adv.muscle, last, substepped),
+            outputs,
+            iterations: adv.iterations,
+        })
+    }
+
+    /// (dF/dL, dF/du) of the last step's map at the committed state (u the
+    /// activation command): from the converged tangent (one factorisation
+    /// and two solves, [`Discretization::force_derivatives`]; dF/du =
+    /// dF/da · ∂a/∂u), or for a step that took substeps by central
+    /// differences of its map ([`Self::output_jacobian`]). `l0` scales the
+    /// length differences, `area` the stresses.
+    pub fn force_derivatives(&self, p: &Params, l0: f64, area: f64) -> Result<(f64, f64), String> {
+        self.derivatives
+            .get_or_init(|| {
+                if self.substepped.is_some() {
+                    // The step map's differences give every output at once:
+                    // kept for the other outputs' derivatives.
+                    let jacobian = self.output_jacobian(p, l0, area)?;
+                    let force = jacobian[Quantity::Force as usize];
+                    return Ok((force[0], force[1]));
+                }
+                let (m, last) = (&self.muscle, &self.last);
+                let ev =
+                    m.disc
+                        .evaluate(p, &m.x, last.activation, &last.start, last.rate(), true)?;
+                let (dl, da) = m.disc.force_derivatives(&ev)?;
+                Ok((dl, da * last.da_du))
+            })
+            .clone()
+    }
+
+    /// ∂(output)/∂(length, command) of the last step's map for every
+    /// output, on first request. A step in one piece: the equilibrium's
+    /// sensitivities ∂x/∂L, ∂x/∂a from the converged tangent (one
+    /// factorisation, two solves, [`Discretization::sensitivities`]), and
+    /// the outputs evaluated at x ± ε ∂x/∂L (length L ± ε) and
+    /// x ± ε ∂x/∂a (level a ± ε, one-sided at the ends of [0, 1]) with the
+    /// step's start history ([`OUTPUT_DIRECTION_STEP`]); ∂/∂u = ∂/∂a ·
+    /// ∂a/∂u. A substepped step: [`Self::step_map_jacobian`]. The
+    /// extremes over the elements (`VolumeRatioMin`/`Max`,
+    /// `MaxFibreStretch`) have the derivative of the element that is
+    /// extreme, where that does not change within ±ε.
+    pub fn output_jacobian(
+        &self,
+        p: &Params,
+        l0: f64,
+        area: f64,
+    ) -> Result<OutputJacobian, String> {
+        self.output_derivatives
+            .get_or_init(|| {
+                if let Some(step) = &self.substepped {
+                    return step_map_jacobian(step, p, l0, area);
+                }
+                let (m, last) = (&self.muscle, &self.last);
+                let a = last.activation;
+                let ev = m
+                    .disc
+                    .evaluate(p, &m.x, a, &last.start, last.rate(), true)?;
+                let factor = m
+                    .disc
+                    .pattern
+                    .factorize(ev.tangent.as_ref().ok_or("no tangent")?)?;
+                let (dx_dl, dx_da, _) = m.disc.sensitivities(&ev, &factor);
+                let at = |dx: &[f64], e: f64, dl: f64, da: f64| -> Result<Outputs, String> {
+                    let x: Vec<f64> = m.x.iter().zip(dx).map(|(x, d)| x + e * d).collect();
+                    let ev = m
+                        .disc
+                        .evaluate(p, &x, a + da, &last.start, last.rate(), false)?;
+                    Ok(outputs(&m.disc, area, m.length + dl, &ev, a + da))
+                };
+                let el = OUTPUT_DIRECTION_STEP * l0;
+                let (longer, shorter) = (at(&dx_dl, el, el, 0.0)?, at(&dx_dl, -el, -el, 0.0)?);
+                let (up, down) = (
+                    OUTPUT_DIRECTION_STEP.min(1.0 - a),
+                    OUTPUT_DIRECTION_STEP.min(a),
+                );
+                let (more, less) = (at(&dx_da, up, 0.0, up)?, at(&dx_da, -down, 0.0, -down)?);
+                Ok(difference_columns(
+                    (&longer, &shorter, 2.0 * el),
+                    (&more, &less, up + down),
+                    last.da_du,
+                ))
+            })
+            .clone()
+    }
+}
+
+/// The outputs' derivatives of a substepped step's map by central
+/// differences ([`STEP_MAP_DIFFERENCE`]), each difference the step taken
+/// again from the muscle before it in the same pieces.
+fn step_map_jacobian(
+    step: &Substepped,
+    p: &Params,
+    l0: f64,
+    area: f64,
+) -> Result<OutputJacobian, String> {
+    let l = step.level;
+    let decay = Decay::new(l.s, l.h).value;
+    let outputs_at = |length: f64, command: f64| -> Result<Outputs, String> {
+        let level = StepLevel::new(l.dynamics, l.s, l.a0, command, l.u_dot, l.h, decay);
+        let adv = step
+            .before
+            .advance_pieces(p, length, l.h, &|tau| level.at(tau), &step.pieces)?;
+        let m = &adv.muscle;
+        Ok(outputs(
+            &m.disc,
+            area,
+            m.length,
+            &adv.solution.evaluation,
+            level.end,
+        ))
+    };
+    let (length, u) = (step.end_length, step.level.u);
+    let dl = STEP_MAP_DIFFERENCE * l0;
+    let (longer, shorter) = (outputs_at(length + dl, u)?, outputs_at(length - dl, u)?);
+    let (lo, hi) = (
+        (u - STEP_MAP_DIFFERENCE).max(0.0),
+        (u + STEP_MAP_DIFFERENCE).min(1.0),
+    );
+    let (more, less) = (outputs_at(length, hi)?, outputs_at(length, lo)?);
+    Ok(difference_columns(
+        (&longer, &shorter, 2.0 * dl),
+        (&more, &less, hi - lo),
+        1.0,
+    ))
+}
