@@ -18,6 +18,8 @@
 //!    case with smooth inputs — is exactly that step over h; stiff transients
 //!    (a stiff SEE, fast activation, length jumps) get as many as keep the
 //!    estimated local error of the SEE stress below `substep_tolerance`·sigma0.
+//!    Acceptance, growth and reduction of a piece are [`crate::step_control`]'s;
+//!    this module places the pieces on a dyadic grid of the step.
 //!
 //! The state is committed only on success: a failed step ([`Discard`])
 //! leaves the muscle unchanged. At initialization ([`Muscle1D::initialize`])

@@ -3,8 +3,10 @@
 //! pieces on a dyadic grid of the step, each one backward-Euler step of the
 //! CE–SEE update (MODEL_NOTES "Hill fibre") inside the uniaxial solve
 //! (MODEL_NOTES "The 1D Hill reduction"), with the total sensitivities of the
-//! end state to the inputs chained through the pieces, whose length
-//! [`piece_error`]'s estimate controls. Paths without a CE–SEE solve: a
+//! end state to the inputs chained through the pieces. Whether a piece is
+//! accepted and how much the next grows or a rejected one shrinks is
+//! [`crate::step_control`]'s policy on [`piece_error`]'s estimate; this file
+//! only places the pieces on the grid. Paths without a CE–SEE solve: a
 //! muscle without the contractile element ([`Muscle1D::solve_passive`]) and
 //! a step at rest ([`Muscle1D::solve_rest`]), bit for bit the general path's
 //! one piece.
@@ -18,7 +20,7 @@ use crate::law::force_velocity::branch_included;
 use crate::law::hill_fibre::{backward_euler_error, ce_stretch};
 use crate::law::uniaxial::Sensitivity;
 use crate::law::{solve_uniaxial_with, Components, FibreHistory, FibreRate, Params, Uniaxial};
-use crate::step_control::MAX_CONTROLLED_TRIES;
+use crate::step_control::{self, MAX_CONTROLLED_TRIES};
 
 /// Estimated local error of the backward-Euler CE–SEE update over a piece of
 /// length `hs`, as SEE stress [Pa]. `start` is the piece's start: the CE
@@ -158,10 +160,10 @@ impl<C: Components> Muscle1D<C> {
     /// follows [`Self::level`]; each substep is the backward-Euler step of
     /// MODEL_NOTES over its own length. The first try is the whole step. A
     /// substep whose estimate exceeds `substep_tolerance`·sigma0 is tried
-    /// again shorter, and after an accepted one the next may be longer: the
-    /// usual controller of a first-order method, h_new = h · 0.9
-    /// (tol/err)^(1/2), rounded down to the dyadic sizes h/2^k that fit the
-    /// dyadic grid of the step, so that the substeps tile the step exactly and are piecewise
+    /// again shorter, and after an accepted one the next may be longer, by
+    /// [`step_control`]'s policy (h_new = h · 0.9 (tol/err)^(1/2), the
+    /// controller of a first-order method), rounded down to the dyadic sizes
+    /// h/2^k that fit the dyadic grid of the step, so that the substeps tile the step exactly and are piecewise
     /// constant in the inputs (the step map is then smooth between switches
     /// of the pattern, and its partial derivatives — chained through the
     /// substeps — are those of the map). After [`MAX_CONTROLLED_TRIES`] tries the rest
@@ -276,15 +278,15 @@ impl<C: Components> Muscle1D<C> {
             // shorter pieces), and so is one that cannot be halved in binary64
             // (a step of a few ulps).
             // Without substeps every step is one piece.
-            let acceptable = err <= tol || !self.adaptive_substeps; // false for NaN
+            let acceptable = step_control::accepted(err, tol) || !self.adaptive_substeps;
             if !forced && level < FINEST && hs_j * 0.5 >= f64::MIN_POSITIVE && !acceptable {
                 // Too large (or not finite): the same start, a shorter piece,
                 // at least half as long.
                 stats.rejected_substeps += 1;
-                level += if err.is_finite() {
-                    halvings(0.9 * (tol / err).sqrt()).max(1)
-                } else {
-                    4
+                // A reduction is at most 0.9: at least one halving.
+                level += match step_control::reduction(err, tol) {
+                    Some(factor) => halvings(factor),
+                    None => 4,
                 };
                 level = level.min(FINEST);
                 continue;
@@ -320,14 +322,10 @@ impl<C: Components> Muscle1D<C> {
                     stats,
                 });
             }
-            // The next piece: up to 4x longer, as far as the estimate allows
-            // and the grid of its size admits (its start a multiple of it).
-            let factor = if err > 0.0 {
-                0.9 * (tol / err).sqrt()
-            } else {
-                f64::INFINITY
-            };
-            let mut next = level.saturating_sub(doublings(factor).min(2));
+            // The next piece: as much longer as the policy allows (at most
+            // 4x: two doublings) and the grid of its size admits (its start
+            // a multiple of it).
+            let mut next = level.saturating_sub(doublings(step_control::growth(err, tol)));
             while next < level && end % (WHOLE >> next) != 0 {
                 next += 1;
             }
