@@ -20,8 +20,8 @@ pub enum Discard {
     Unsolvable(String),
     /// The CE–SEE root lies on a branch of f_v (eq 12) that the components
     /// leave out ([`crate::law::Components::FV_SHORTENING`],
-    /// `FV_LENGTHENING`): the CE carries `sigma_see` [Pa] while its stretch
-    /// rate `rate` [1/s] is on that branch (lengthening when > 0).
+    /// `FV_LENGTHENING`): the CE carries `sigma_see` (Pa) while its stretch
+    /// rate `rate` (1/s) is on that branch (lengthening when > 0).
     AbsentFvBranch { rate: f64, sigma_see: f64 },
 }
 

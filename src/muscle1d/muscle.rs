@@ -12,10 +12,10 @@ use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{solve_uniaxial_with, Components, FibreHistory, FibreRate, Params, Uniaxial};
 use std::marker::PhantomData;
 
-/// Rest length of the paper's specimen [m].
+/// Rest length of the paper's specimen, m.
 pub const DEFAULT_L0: f64 = 0.05;
 
-/// Default cross-section [m²]: the mean cross-section V0/L0 of the paper's
+/// Default cross-section, m²: the mean cross-section V0/L0 of the paper's
 /// fusiform specimen ([`crate::specimen::MEAN_AREA`] ≈ 1.6849e-4), the same
 /// stress scale as the FE muscle.
 pub const DEFAULT_AREA: f64 = crate::specimen::MEAN_AREA;
@@ -207,7 +207,7 @@ impl<C: Components> Muscle1D<C> {
 
     /// One step of length `h` from the committed state to the length input
     /// (plus `h` times its derivative), the command held (or linear) over it
-    /// ([`Muscle1D::solve_step`]). Committed only on success; the input
+    /// (its step map, `solve_step`). Committed only on success; the input
     /// derivatives hold for this one step.
     pub fn step(&mut self, h: f64) -> Result<(), Discard> {
         let end_length = self.length() + h * self.length_rate;

@@ -1,8 +1,8 @@
 //! The 1D muscle's outputs and their partial derivatives with respect to the
 //! inputs (MODEL_NOTES "The 1D Hill reduction": force = σ11 A0 μ², the
-//! nominal stress P = τ11 / λ): [`Muscle1D::evaluate`] forms the outputs of a
+//! nominal stress P = τ11 / λ): `Muscle1D::evaluate` forms the outputs of a
 //! solved state and what their partials need ([`Jacobian`]), whose
-//! [`Jacobian::partial`] forms each partial on demand.
+//! [`Muscle1D::partial`] forms each partial on demand.
 
 use super::muscle::Muscle1D;
 use crate::law::hill_fibre::ce_stretch;
@@ -10,7 +10,8 @@ use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, Sensitivity};
 use crate::law::{Components, Uniaxial};
 
-/// The outputs, in the order [`Muscle1D::evaluate`] stores them.
+/// The outputs, in the order the muscle stores them
+/// ([`Muscle1D::output`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Output {
     Force,
@@ -49,7 +50,7 @@ const SENSITIVITY_LEN: usize = 6;
 
 /// What the partial derivatives of the outputs with respect to the inputs
 /// need from the last solve. The partials are formed on demand in
-/// [`Jacobian::partial`]: forming them every step would cost more than the
+/// [`Muscle1D::partial`]: forming them every step would cost more than the
 /// rest of the step's bookkeeping, and only masters that ask for
 /// directional derivatives use them.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]

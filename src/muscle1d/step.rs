@@ -1,5 +1,5 @@
 //! The step map of the 1D muscle and its error control: the state at the
-//! end of a step from the committed one ([`Muscle1D::solve_step`]), solved in
+//! end of a step from the committed one (`Muscle1D::solve_step`), solved in
 //! pieces on a dyadic grid of the step, each one backward-Euler step of the
 //! CE–SEE update (MODEL_NOTES "Hill fibre") inside the uniaxial solve
 //! (MODEL_NOTES "The 1D Hill reduction"), with the total sensitivities of the
@@ -7,8 +7,8 @@
 //! accepted and how much the next grows or a rejected one shrinks is
 //! [`crate::step_control`]'s policy on [`piece_error`]'s estimate; this file
 //! only places the pieces on the grid. Paths without a CE–SEE solve: a
-//! muscle without the contractile element ([`Muscle1D::solve_passive`]) and
-//! a step at rest ([`Muscle1D::solve_rest`]), bit for bit the general path's
+//! muscle without the contractile element (`solve_passive`) and
+//! a step at rest (`solve_rest`), bit for bit the general path's
 //! one piece.
 
 use super::error::Discard;
@@ -23,7 +23,7 @@ use crate::law::{solve_uniaxial_with, Components, FibreHistory, FibreRate, Param
 use crate::step_control::{self, MAX_CONTROLLED_TRIES};
 
 /// Estimated local error of the backward-Euler CE–SEE update over a piece of
-/// length `hs`, as SEE stress [Pa]. `start` is the piece's start: the CE
+/// length `hs`, as SEE stress, Pa. `start` is the piece's start: the CE
 /// rate of the piece before it and the activation level; `u` and `a` the
 /// solution at the piece's end, `stretch_rate` the stretch rate λ̇ over it.
 ///
@@ -119,7 +119,7 @@ pub(crate) fn combine(terms: &[(&Sensitivity, f64)]) -> Sensitivity {
     r
 }
 
-/// A solved step ([`Muscle1D::solve_step`]): the state at its end, the level
+/// A solved step (`Muscle1D::solve_step`): the state at its end, the level
 /// and ∂a/∂u there, the total sensitivities of the end state with respect to
 /// the inputs (activation, length), and the solver counts.
 pub(crate) struct Stepped {
