@@ -303,7 +303,7 @@ impl<C: Components> Muscle1D<C> {
             let mut sens = [Sensitivity::default(); 2];
             for c in [IN_ACTIVATION, IN_LENGTH] {
                 if c == IN_ACTIVATION && !C::ACTIVATION_INPUT {
-                    continue; // the scene has no activation input
+                    continue; // no activation input: no such partial
                 }
                 sens[c] = combine(&[
                     (&u.d_dactivation, drivers[c][0]),
@@ -373,7 +373,7 @@ impl<C: Components> Muscle1D<C> {
         })
     }
 
-    /// The step of a scene without the contractile element: the fibre is the
+    /// The step of a muscle without the contractile element: the fibre is the
     /// parallel element alone, so the state at the end of the step depends
     /// on the end stretch only (no history, no activation: MODEL_NOTES "Hill
     /// fibre" with σ0 a f_λ = 0) — one lateral solve on the passive law, no
