@@ -3,6 +3,8 @@
 //!
 //! - [`law`]: the muscle law (no FMI in it): parameters, fibre curves, the
 //!   CE–SEE step solve, the 3D stress and tangent, the 1D uniaxial reduction.
+//! - [`muscle1d`]: the 1D muscle (no FMI in it): its state, step map with
+//!   error control, predictor and output partials.
 //! - [`fmi2`]: a generic FMI 2.0 Co-Simulation layer over a [`fmi2::Model`]
 //!   (knows nothing about muscles).
 //! - [`fmus`]: the FMUs: models with their variable tables.
@@ -23,6 +25,7 @@ pub mod fe;
 pub mod fmi2;
 pub mod fmus;
 pub mod law;
+pub mod muscle1d;
 pub mod scene;
 pub mod specimen;
 pub mod step_control;

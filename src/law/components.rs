@@ -1,4 +1,4 @@
-//! Compile-time selection of the law's components (issue 6, scenes).
+//! Compile-time selection of the law's components (scenes).
 //!
 //! A [`Components`] type says which terms of the energy U = U_I + U_f + U_J
 //! (MODEL_NOTES "Energy and stress") and which parts of the Hill fibre
@@ -29,6 +29,13 @@ pub trait Components: 'static {
     /// The lengthening branch of f_v (λ̇m > 0, eq 12). Without it f_v = 1
     /// there.
     const FV_LENGTHENING: bool = true;
+    /// First-order activation dynamics da/dt = S (u − a) (MODEL_NOTES
+    /// "Activation", eq 9–10). Without it a = u, whatever a model's switch
+    /// says.
+    const ACTIVATION_DYNAMICS: bool = true;
+    /// The activation command u is an input of the computation. Without it
+    /// u = 0, and no derivative with respect to it is formed.
+    const ACTIVATION_INPUT: bool = true;
 }
 
 /// The complete law.

@@ -205,6 +205,8 @@ impl<S: Scene> crate::law::Components for LawOf<S> {
     const CONTRACTILE: bool = S::SPEC.components.contractile;
     const FV_SHORTENING: bool = S::SPEC.components.fv_shortening;
     const FV_LENGTHENING: bool = S::SPEC.components.fv_lengthening;
+    const ACTIVATION_DYNAMICS: bool = S::SPEC.components.activation_dynamics;
+    const ACTIVATION_INPUT: bool = S::SPEC.inputs.activation;
 }
 
 /// An FE mesh level a scene can name ([`MESH_LEVELS`]): the mesh parameters
