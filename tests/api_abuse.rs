@@ -1,5 +1,5 @@
 //! The FMI API of `HillMuscle1D` under abuse (issue 4, section 3): the
-//! property-based harness of `tests/api_abuse/harness.rs` — what it
+//! property-based harness of `testkit::api_abuse` — what it
 //! generates and the properties it checks for every call are documented
 //! there — run on `HillMuscle1D` through the generic C-signature functions
 //! `hill_muscle::fmi2::api::*::<Hill1D>`, exactly what the exported
@@ -39,18 +39,11 @@
 //! The bugs this harness found in `HillMuscle1D` and the layer are listed
 //! in the harness's module docs; their regression tests run on both FMUs.
 
-#[macro_use]
-#[path = "api_abuse/harness.rs"]
-mod harness;
-
-use harness::{Integers, Subject};
 use hill_muscle::fmus::hill1d::Hill1D;
+use testkit::api_abuse::{Integers, Subject};
 
 /// `HillMuscle1D` as the harness's subject.
 pub struct OneD;
-
-/// The subject of this crate's harness.
-pub type Sub = OneD;
 
 impl Subject for OneD {
     type M = Hill1D;
@@ -72,4 +65,4 @@ impl Subject for OneD {
     const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = None;
 }
 
-harness_tests!();
+testkit::harness_tests!(OneD);
