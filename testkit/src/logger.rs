@@ -71,7 +71,7 @@ impl LogBook {
 }
 
 /// The bytes of a C string; `<NULL>` for a null pointer.
-pub fn c_bytes(p: *const c_char) -> Vec<u8> {
+pub(crate) fn c_bytes(p: *const c_char) -> Vec<u8> {
     if p.is_null() {
         b"<NULL>".to_vec()
     } else {
@@ -80,7 +80,7 @@ pub fn c_bytes(p: *const c_char) -> Vec<u8> {
 }
 
 /// [`c_bytes`] as text (invalid UTF-8 replaced).
-pub fn c_text(p: *const c_char) -> String {
+pub(crate) fn c_text(p: *const c_char) -> String {
     String::from_utf8_lossy(&c_bytes(p)).into_owned()
 }
 
