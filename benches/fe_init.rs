@@ -27,9 +27,8 @@ use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
 use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
 
-#[path = "common/cabi.rs"]
-mod cabi;
 use cabi::median;
+use testkit::cabi;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

@@ -36,9 +36,8 @@ use hill_muscle::fmus::hillfe::HillFE;
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
 use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
 
-#[path = "common/cabi.rs"]
-mod cabi;
 use cabi::{load, median, Instance};
+use testkit::cabi;
 
 const H: f64 = 1e-3;
 const SPEED: f64 = 0.005;

@@ -26,9 +26,8 @@ use hill_muscle::fmus::hill1d::{Hill1DModel, DEFAULT_L0};
 use hill_muscle::scene::shipped::*;
 use hill_muscle::scene::Scene;
 
-#[path = "common/cabi.rs"]
-mod cabi;
 use cabi::{load, median, Api, Instance};
+use testkit::cabi;
 
 const REPEATS: usize = 7;
 const H: f64 = 1e-4;

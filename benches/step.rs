@@ -16,9 +16,8 @@ use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::Model;
 use hill_muscle::fmus::hill1d::{Hill1D, Var, DEFAULT_L0};
 
-#[path = "common/cabi.rs"]
-mod cabi;
 use cabi::{load, median, Api, Instance};
+use testkit::cabi;
 
 const STEPS: usize = 200_000;
 const REPEATS: usize = 7;

@@ -1,5 +1,5 @@
 //! The stability matrix of issue 4 §1: runs every model of
-//! `tests/stability/mod.rs` over the full grid and writes `docs/stability.md`
+//! `testkit::stability` over the full grid and writes `docs/stability.md`
 //! (the report) and `docs/stability.csv` (every cell).
 //!
 //! ```sh
@@ -13,14 +13,11 @@
 //! `--baseline CSV` (a CSV of an earlier run: adds a before/after section),
 //! `--csv-only`. `STABILITY_THREADS` sets the worker threads.
 
-#[path = "../tests/stability/mod.rs"]
-mod stability;
-
-use stability::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
+use testkit::stability::{self, *};
 
 fn main() {
     let mut subset = false;
@@ -283,7 +280,7 @@ fn report(
     );
     let _ = writeln!(
         s,
-        "Models: {}. The harness is `tests/stability/mod.rs` (shared with the CI subset, \
+        "Models: {}. The harness is `testkit::stability` (shared with the CI subset, \
          `tests/stability_subset.rs`); its module documentation is the full specification.\n",
         models.join(", ")
     );

@@ -1,5 +1,5 @@
 //! The FMI API of `HillMuscle1D` under abuse (issue 4, section 3): the
-//! property-based harness of `tests/api_abuse/harness.rs` — what it
+//! property-based harness of `testkit::api_abuse` — what it
 //! generates and the properties it checks for every call are documented
 //! there — run on `HillMuscle1D` through the generic C-signature functions
 //! `hill_muscle::fmi2::api::*::<Hill1D>`, exactly what the exported
@@ -12,7 +12,7 @@
 //! keep it exactly as it was: no Integer variables (so no Integer values
 //! are generated beyond `any::<i32>()` for wrong-type calls, and the `Init`
 //! macro sets none), every Real output differentiated, no known bug,
-//! initialization never refuses in-range parameters (README "Bad input":
+//! initialization never refuses in-range parameters (docs/reference/bad-input.md:
 //! only a length or `L0` outside what the law can evaluate, or a CE length
 //! ≤ 0, which the oracle leaves open anyway). Its `do_step` never returns
 //! `StepError::Error`: every `fmi2Error` is a rejection.
@@ -39,18 +39,11 @@
 //! The bugs this harness found in `HillMuscle1D` and the layer are listed
 //! in the harness's module docs; their regression tests run on both FMUs.
 
-#[macro_use]
-#[path = "api_abuse/harness.rs"]
-mod harness;
-
-use harness::{Integers, Subject};
 use hill_muscle::fmus::hill1d::Hill1D;
+use testkit::api_abuse::{Integers, Subject};
 
 /// `HillMuscle1D` as the harness's subject.
 pub struct OneD;
-
-/// The subject of this crate's harness.
-pub type Sub = OneD;
 
 impl Subject for OneD {
     type M = Hill1D;
@@ -72,4 +65,4 @@ impl Subject for OneD {
     const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = None;
 }
 
-harness_tests!();
+testkit::harness_tests!(OneD);

@@ -1,5 +1,5 @@
 //! The FMI API of `HillMuscleFE` under abuse (issue 4, section 3): the
-//! property-based harness of `tests/api_abuse/harness.rs` — what it
+//! property-based harness of `testkit::api_abuse` — what it
 //! generates and the properties it checks for every call are documented
 //! there — run on the finite-element muscle through
 //! `hill_muscle::fmi2::api::*::<HillFE>`, exactly what its exported
@@ -8,8 +8,8 @@
 //!
 //! # What differs from `HillMuscle1D`, and how the harness handles it
 //!
-//! From the model's documentation (`src/fmus/hillfe.rs`, README "Bad
-//! input") and its variable table:
+//! From the model's documentation (`src/fmus/hillfe.rs`,
+//! docs/reference/bad-input.md) and its variable table:
 //!
 //! - **Integer parameters** `n_axial` ∈ [1, 96], `n_radial` ∈ [1, 16] (the
 //!   mesh) and `fibre_layout` ∈ [0, 1], and the Integer output
@@ -132,13 +132,8 @@
 
 #![cfg(feature = "fe")]
 
-#[macro_use]
-#[path = "api_abuse/harness.rs"]
-mod harness;
-
 use std::ptr::null_mut;
 
-use harness::{fix_checksum, round_trip_status, split_state, vr_named, Fmu, Integers, Subject};
 use hill_muscle::fmi2::api;
 use hill_muscle::fmi2::bytes::ByteReader;
 use hill_muscle::fmi2::instance::decode_state;
@@ -146,12 +141,12 @@ use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::state::FmiState;
 use hill_muscle::fmi2::types::*;
 use hill_muscle::fmus::hillfe::HillFE;
+use testkit::api_abuse::{
+    fix_checksum, install, round_trip_status, split_state, vr_named, Fmu, Integers, Subject,
+};
 
 /// `HillMuscleFE` as the harness's subject.
 pub struct Fe;
-
-/// The subject of this crate's harness.
-pub type Sub = Fe;
 
 /// The smallest mesh: no free node.
 const MESH_1X1: Integers = &[("n_axial", 1), ("n_radial", 1)];
@@ -199,7 +194,7 @@ fn mesh_offset(bytes: &[u8]) -> Option<usize> {
     (at + 8 <= bytes.len()).then_some(at)
 }
 
-harness_tests!(release_only);
+testkit::harness_tests!(Fe, release_only);
 
 // ---------------------------------------------------------------------------
 // Regression tests of the bugs this harness found (module docs)
@@ -216,6 +211,7 @@ harness_tests!(release_only);
     ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
 )]
 fn mesh_parameters_set_before_initialization_keep_the_state_serializable() {
+    install::<Fe>();
     for in_initialization_mode in [false, true] {
         let f = Fmu::new(false);
         unsafe {
@@ -246,6 +242,7 @@ fn mesh_parameters_set_before_initialization_keep_the_state_serializable() {
     ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
 )]
 fn a_state_whose_parameters_disagree_with_its_muscle_is_refused_after_initialization() {
+    install::<Fe>();
     let f = Fmu::new(false);
     unsafe {
         assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);
@@ -293,6 +290,7 @@ fn a_state_whose_parameters_disagree_with_its_muscle_is_refused_after_initializa
     ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
 )]
 fn a_specimen_much_wider_than_long_initializes_at_rest() {
+    install::<Fe>();
     for (name, value) in [("L0", 1e-3), ("area", 1.0)] {
         let f = Fmu::new(false);
         let vr = vr_named(name);
@@ -346,6 +344,7 @@ fn with_model_bytes(bytes: &[u8], model: &[u8]) -> Vec<u8> {
     ignore = "unoptimized, a new HillMuscleFE instance costs seconds: cargo test --release"
 )]
 fn a_state_without_a_muscle_is_refused() {
+    install::<Fe>();
     let f = Fmu::new(false);
     let bytes = unsafe {
         assert_eq!(api::enter_initialization_mode::<HillFE>(f.c), fmi2OK);

@@ -2,19 +2,11 @@
 //! through its C signatures, with a small dummy model: a first-order lag
 //! `tau y' = x - y`, `x = gain * u + w`, stepped with implicit Euler.
 //!
-//! The test logger: FMI's logger is a C variadic function, which stable Rust
-//! cannot define. The layer always calls it as `logger(env, name, status,
-//! category, "%s", text)`, so the test logger is a non-variadic
-//! `extern "C" fn` taking that one extra `const char*` argument, transmuted
-//! to the variadic pointer type. That is sound on the SysV x86-64 and
-//! AAPCS64 (Linux) calling conventions, where a variadic argument of pointer
-//! type is passed exactly like the next named argument (the caller only also
-//! sets `%al`, which a non-variadic callee ignores); it would not be on Apple
-//! arm64, where variadic arguments go on the stack.
+//! The test logger is `testkit::logger` (FMI's variadic logger received by a
+//! non-variadic function; its module docs say why that is sound on Linux).
 
-use std::ffi::{c_char, c_void, CStr, CString};
+use std::ffi::{CStr, CString};
 use std::marker::PhantomData;
-use std::sync::Mutex;
 
 use hill_muscle::fmi2::api;
 use hill_muscle::fmi2::bytes::{ByteReader, ByteWriter};
@@ -26,6 +18,7 @@ use hill_muscle::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError, Unit,
     VarType, Variability,
 };
+use testkit::logger::{callbacks, Entry, LogBook};
 
 // ---------------------------------------------------------------------------
 // The dummy model
@@ -519,86 +512,6 @@ impl<const K: u8> Model for LagM<K> {
 // Test logger and instance wrapper
 // ---------------------------------------------------------------------------
 
-#[derive(Clone, Debug)]
-struct Entry {
-    instance: String,
-    status: fmi2Status,
-    category: String,
-    format: String,
-    message: String,
-}
-
-#[derive(Default)]
-struct LogBook {
-    entries: Mutex<Vec<Entry>>,
-}
-
-fn c_to_string(p: *const c_char) -> String {
-    if p.is_null() {
-        "<NULL>".to_string()
-    } else {
-        unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
-    }
-}
-
-/// See the module docs: the fixed arguments plus the one `%s` argument.
-unsafe extern "C" fn test_logger(
-    env: fmi2ComponentEnvironment,
-    instance_name: fmi2String,
-    status: fmi2Status,
-    category: fmi2String,
-    message: fmi2String,
-    arg: *const c_char,
-) {
-    if env.is_null() {
-        return;
-    }
-    let book = unsafe { &*(env as *const LogBook) };
-    let e = Entry {
-        instance: c_to_string(instance_name),
-        status,
-        category: c_to_string(category),
-        format: c_to_string(message),
-        message: c_to_string(arg),
-    };
-    if let Ok(mut g) = book.entries.lock() {
-        g.push(e);
-    }
-}
-
-type FixedLogger = unsafe extern "C" fn(
-    fmi2ComponentEnvironment,
-    fmi2String,
-    fmi2Status,
-    fmi2String,
-    fmi2String,
-    *const c_char,
-);
-
-fn callbacks(book: &LogBook) -> fmi2CallbackFunctions {
-    let fixed: FixedLogger = test_logger;
-    fmi2CallbackFunctions {
-        // SAFETY: see the module docs.
-        logger: Some(unsafe {
-            std::mem::transmute::<
-                FixedLogger,
-                unsafe extern "C" fn(
-                    fmi2ComponentEnvironment,
-                    fmi2String,
-                    fmi2Status,
-                    fmi2String,
-                    fmi2String,
-                    ...
-                ),
-            >(fixed)
-        }),
-        allocateMemory: None,
-        freeMemory: None,
-        stepFinished: None,
-        componentEnvironment: book as *const LogBook as *mut c_void,
-    }
-}
-
 struct Fmu<M: Model> {
     c: fmi2Component,
     book: Box<LogBook>,
@@ -641,11 +554,7 @@ impl<M: Model> Fmu<M> {
     fn named(name: &str, logging_on: bool) -> Self {
         let (c, book) =
             try_instantiate::<M>(Some(name), fmi2CoSimulation, Some(&guid::<M>()), logging_on);
-        assert!(
-            !c.is_null(),
-            "instantiate failed: {:?}",
-            book.entries.lock().unwrap()
-        );
+        assert!(!c.is_null(), "instantiate failed: {:?}", book.entries());
         Fmu {
             c,
             book,
@@ -667,11 +576,11 @@ impl<M: Model> Fmu<M> {
     }
 
     fn logs(&self) -> Vec<Entry> {
-        self.book.entries.lock().unwrap().clone()
+        self.book.entries()
     }
 
     fn clear_logs(&self) {
-        self.book.entries.lock().unwrap().clear();
+        self.book.clear();
     }
 
     fn has_log(&self, status: fmi2Status, needle: &str) -> bool {
@@ -1566,7 +1475,7 @@ fn instantiate_rejects_bad_arguments() {
     ] {
         let (c, book) = try_instantiate::<Lag>(name, ty, gd, false);
         assert!(c.is_null(), "{needle}");
-        let logs = book.entries.lock().unwrap().clone();
+        let logs = book.entries();
         assert!(
             logs.iter()
                 .any(|e| e.status == fmi2Error && e.message.contains(needle)),
@@ -2056,7 +1965,7 @@ fn logger_gets_percent_s_text_without_hash_and_the_instance_name() {
     assert!(!logs.is_empty());
     for e in &logs {
         assert_eq!(e.format, "%s");
-        assert_eq!(e.instance, "muscle #3 (left)");
+        assert_eq!(e.instance, b"muscle #3 (left)");
         assert!(!e.message.contains('#'), "{}", e.message);
     }
     let e = logs.iter().find(|e| e.status == fmi2Error).unwrap();

@@ -6,6 +6,7 @@ use hill_muscle::fmi2::{Model, SetOutcome, StepError};
 use hill_muscle::fmus::hill1d::{Hill1D, Output, Var, DEFAULT_AREA, DEFAULT_L0};
 use hill_muscle::law::force_length::force_length;
 use hill_muscle::law::{ParamId, Params};
+use testkit::fd;
 
 const ALL_OUTPUTS: [Output; 9] = [
     Output::Force,
@@ -187,6 +188,7 @@ fn directional_derivatives_match_finite_differences_of_the_step_map() {
         let lm = step_outputs(&base, u, l - dl, h);
         let up = step_outputs(&base, u + du, l, h);
         let um = step_outputs(&base, u - du, l, h);
+        let (d_dl, d_du) = (fd::central_all(&lp, &lm, dl), fd::central_all(&up, &um, du));
         // The partials are those of the last Newton iterate, within 1e-9 of
         // the accepted state: measured accurate to ~1e-7 relative (9e-9 for
         // d stress/dL, 1.3e-7 for d active_stress/dL at u = 0.3, h = 1e-2,
@@ -200,10 +202,7 @@ fn directional_derivatives_match_finite_differences_of_the_step_map() {
             } else {
                 out(&m, o).abs().max(1.0)
             };
-            for (fd, known, step) in [
-                ((lp[k] - lm[k]) / (2.0 * dl), Var::Length, dl),
-                ((up[k] - um[k]) / (2.0 * du), Var::Activation, du),
-            ] {
+            for (fd, known, step) in [(d_dl[k], Var::Length, dl), (d_du[k], Var::Activation, du)] {
                 let an = m.partial_derivative(Var::Out(o), known).unwrap();
                 let derivative_scale = if part {
                     [Output::Stress, Output::ActiveStress, Output::PassiveStress]
@@ -258,23 +257,19 @@ fn initial_directional_derivatives_match_finite_differences_of_the_initializatio
         let (dl, du) = (1e-8, 1e-6);
         let lp = initial_outputs(l + dl, u);
         let lm = initial_outputs(l - dl, u);
+        let d_dl = fd::central_all(&lp, &lm, dl);
         // At u = 0 the command cannot go below 0: the second-order
         // one-sided difference (−3 f(0) + 4 f(δ) − f(2δ)) / 2δ.
         let d_du: Vec<f64> = if u > 0.0 {
             let (up, um) = (initial_outputs(l, u + du), initial_outputs(l, u - du));
-            up.iter()
-                .zip(&um)
-                .map(|(p, m)| (p - m) / (2.0 * du))
-                .collect()
+            fd::central_all(&up, &um, du)
         } else {
             let (f0, f1, f2) = (
                 initial_outputs(l, 0.0),
                 initial_outputs(l, du),
                 initial_outputs(l, 2.0 * du),
             );
-            (0..f0.len())
-                .map(|k| (-3.0 * f0[k] + 4.0 * f1[k] - f2[k]) / (2.0 * du))
-                .collect()
+            fd::forward_all(&f0, &f1, &f2, du)
         };
         let stress_scale = out(&m, Output::Stress).abs().max(1.0);
         for (k, &o) in ALL_OUTPUTS.iter().enumerate() {
@@ -287,7 +282,7 @@ fn initial_directional_derivatives_match_finite_differences_of_the_initializatio
                 out(&m, o).abs().max(1.0)
             };
             for (fd, known, step, rel) in [
-                ((lp[k] - lm[k]) / (2.0 * dl), Var::Length, dl, 1e-6),
+                (d_dl[k], Var::Length, dl, 1e-6),
                 (d_du[k], Var::Activation, du, 1e-5),
             ] {
                 let an = m.partial_derivative(Var::Out(o), known).unwrap();

@@ -13,6 +13,7 @@ use hill_muscle::scene::shipped::{
     HillActivated1D, HillActuator1D, HillIsometric1D, HillMuscle1D, HillPassive1D,
 };
 use hill_muscle::scene::{Components, Inputs, Scene, SceneSpec, Setting, Value, Variant};
+use testkit::fd;
 
 const H: f64 = 1e-3;
 
@@ -340,7 +341,7 @@ fn actuator_stiffness_matches_finite_differences_of_the_step_map() {
                 c.do_step(i as f64 * H, H).unwrap();
                 c.get_real(Var::Out(Output::Force))
             };
-            let fd = (at(e) - at(-e)) / (2.0 * e);
+            let fd = fd::central(at, e);
             let mut c = m.clone();
             c.set_real(Var::Length, l).unwrap();
             c.do_step(i as f64 * H, H).unwrap();

@@ -1,7 +1,7 @@
 //! The CI subset of the stability matrix (issue 4 §1): every 19th cell of the
 //! full matrix of `cargo run --release --example stability` (342 cells, every
 //! value of every grid dimension), run through the same harness
-//! (`tests/stability/mod.rs`), asserting the acceptance criteria: no error or
+//! (`testkit::stability`), asserting the acceptance criteria: no error or
 //! crash, no NaN or infinity in any output, no cell past its time bound,
 //! every discard explained, no completed step outside its physical bounds —
 //! and, for a model that controls its time error (`HillMuscle1D`),
@@ -19,13 +19,10 @@
 //! or an active stress above its bound, through the same FMI functions, is
 //! caught.
 
-#[path = "stability/mod.rs"]
-mod stability;
-
 use hill_muscle::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError};
 use hill_muscle::fmus::hill1d::{Hill1D, Output, Var};
 use hill_muscle::law::Params;
-use stability::*;
+use testkit::stability::*;
 
 fn subset() -> Vec<Cell> {
     let cells = ci_subset();

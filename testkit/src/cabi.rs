@@ -1,8 +1,8 @@
-//! Loading an FMU's binary from `dist/<id>.fmu` with dlopen and calling its
-//! FMI 2.0 C functions, for the benchmarks (declared here independently of
-//! the crate's own FMI layer, as an importer would).
-
-#![allow(dead_code)]
+//! Loading an FMU's binary from `dist/<id>.fmu` (at the repository's top
+//! level) with dlopen and calling its FMI 2.0 C functions, for the
+//! benchmarks. The C types are declared here independently of the crate's
+//! own FMI layer, as an importer would. Entry points: [`load`], then
+//! [`Instance`] for an initialized instance freed on drop.
 
 use std::ffi::{c_char, c_int, c_uint, c_void, CStr, CString};
 use std::io::Read;
@@ -59,7 +59,11 @@ unsafe fn sym<T: Copy>(lib: *mut c_void, name: &str) -> T {
 }
 
 fn extract_binary(id: &str) -> PathBuf {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    // This crate sits one level below the repository's top level.
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("testkit/ has a parent directory")
+        .to_path_buf();
     let fmu = root.join(format!("dist/{id}.fmu"));
     let file = std::fs::File::open(&fmu)
         .unwrap_or_else(|e| panic!("{}: {e} (run scripts/build_fmus.sh first)", fmu.display()));
