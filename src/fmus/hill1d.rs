@@ -8,21 +8,20 @@
 //! [`LAW_HTML`]).
 
 use super::common::{
-    check_range, check_restored_drive, check_restored_history, check_unit_interval, input,
-    parameter, real, substep_tolerance_type, units,
+    check_range, check_unit_interval, input, parameter, real, substep_tolerance_type, units,
 };
 pub use super::common::{SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE};
-use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
     VarType, Variability,
 };
-use crate::law::activation::Decay;
 use crate::law::params::{AREA_RANGE, L0_RANGE, LENGTH_RANGE};
-use crate::law::{FibreHistory, ParamId, Params, PARAMETERS};
+use crate::law::{ParamId, Params, PARAMETERS};
 pub use crate::muscle1d::{piece_error, Output, StepStatistics, DEFAULT_AREA, DEFAULT_L0};
-use crate::muscle1d::{Discard, Input, Jacobian, Muscle1D, Predictor, N_OUT};
+use crate::muscle1d::{Discard, Input, Muscle1D, N_OUT};
 use crate::scene::{LawOf, Scene, Value};
+
+mod state;
 
 /// A variable of `HillMuscle1D`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -332,145 +331,11 @@ impl<S: Scene> Model for Hill1DModel<S> {
     }
 
     fn serialize(&self, out: &mut Vec<u8>) {
-        let params: Vec<f64> = PARAMETERS
-            .iter()
-            .map(|info| self.muscle.params.get(info.id))
-            .collect();
-        let mut w = ByteWriter::new(out);
-        w.f64s(&params)
-            .f64(self.muscle.l0)
-            .f64(self.muscle.area)
-            .bool(self.muscle.activation_dynamics)
-            .f64(self.muscle.initial_activation)
-            .f64(self.muscle.command)
-            .f64s(self.muscle.length.as_slice())
-            .f64(self.muscle.command_rate)
-            .f64(self.muscle.length_rate)
-            .f64(self.muscle.activation_level)
-            .f64(self.muscle.history.lambda_s)
-            .f64(self.muscle.history.lambda_m)
-            .f64(self.muscle.lambda)
-            .f64(self.muscle.q)
-            .f64s(&self.muscle.predict.q)
-            .f64s(&self.muscle.predict.lambda_s)
-            // The decay cache is derived: only its step size is kept, and the
-            // value is recomputed from S on restore.
-            .f64s(self.muscle.decay.as_ref().map(|d| d.h).as_slice())
-            .f64s(&self.muscle.outputs)
-            .f64s(&self.muscle.jacobian.to_values())
-            .f64(self.muscle.ce_rate)
-            .bool(self.muscle.adaptive_substeps)
-            .f64(self.muscle.substep_tolerance);
+        state::encode(self, out);
     }
 
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
-        let bad = |e: String| ModelError(format!("HillMuscle1D state: {e}"));
-        let mut r = ByteReader::new(input);
-        let mut m = Self::new();
-        let params = r.f64s()?;
-        if params.len() != PARAMETERS.len() {
-            return Err(bad(format!(
-                "{} parameters, expected {}",
-                params.len(),
-                PARAMETERS.len()
-            )));
-        }
-        for (info, &v) in PARAMETERS.iter().zip(&params) {
-            m.muscle
-                .params
-                .set(info.id, v)
-                .map_err(|e| bad(e.to_string()))?;
-        }
-        m.muscle.l0 = r.f64()?;
-        m.muscle.area = r.f64()?;
-        m.muscle.activation_dynamics = r.bool()?;
-        m.muscle.initial_activation = r.f64()?;
-        m.muscle.command = r.f64()?;
-        m.muscle.length = match r.f64s()?.as_slice() {
-            [] => None,
-            &[l] => Some(l),
-            other => return Err(bad(format!("bad length {other:?}"))),
-        };
-        m.muscle.command_rate = r.f64()?;
-        m.muscle.length_rate = r.f64()?;
-        m.muscle.activation_level = r.f64()?;
-        m.muscle.history = FibreHistory {
-            lambda_s: r.f64()?,
-            lambda_m: r.f64()?,
-        };
-        m.muscle.lambda = r.f64()?;
-        m.muscle.q = r.f64()?;
-        let four = |r: &mut ByteReader| -> Result<[f64; 4], ModelError> {
-            let v = r.f64s()?;
-            let n = v.len();
-            v.try_into()
-                .map_err(|_| bad(format!("{n} predictor values, expected 4")))
-        };
-        m.muscle.predict = Predictor {
-            q: four(&mut r)?,
-            lambda_s: four(&mut r)?,
-        };
-        m.muscle.decay = match r.f64s()?.as_slice() {
-            [] => None,
-            &[h] if h.is_finite() && h > 0.0 => Some(Decay::new(m.muscle.params.s, h)),
-            other => return Err(bad(format!("bad activation decay step {other:?}"))),
-        };
-        let fill = |r: &mut ByteReader, dst: &mut [f64; N_OUT]| -> Result<(), ModelError> {
-            let v = r.f64s()?;
-            if v.len() != N_OUT {
-                return Err(bad(format!("{} outputs, expected {N_OUT}", v.len())));
-            }
-            dst.copy_from_slice(&v);
-            Ok(())
-        };
-        fill(&mut r, &mut m.muscle.outputs)?;
-        let jacobian = r.f64s()?;
-        m.muscle.jacobian = Jacobian::from_values(&jacobian).ok_or_else(|| {
-            bad(format!(
-                "{} Jacobian values, expected {}",
-                jacobian.len(),
-                Jacobian::LEN
-            ))
-        })?;
-        m.muscle.ce_rate = r.f64()?;
-        m.muscle.adaptive_substeps = r.bool()?;
-        m.muscle.substep_tolerance = r.f64()?;
-        if !SUBSTEP_TOLERANCE_RANGE.contains(m.muscle.substep_tolerance) {
-            return Err(bad(format!(
-                "substep_tolerance = {} outside {SUBSTEP_TOLERANCE_RANGE}",
-                m.muscle.substep_tolerance
-            )));
-        }
-        let state = [
-            m.muscle.command,
-            m.muscle.command_rate,
-            m.muscle.length_rate,
-            m.muscle.activation_level,
-            m.muscle.history.lambda_s,
-            m.muscle.history.lambda_m,
-            m.muscle.lambda,
-            m.muscle.q,
-            m.muscle.ce_rate,
-        ];
-        if state
-            .iter()
-            .chain(&m.muscle.predict.q)
-            .chain(&m.muscle.predict.lambda_s)
-            .chain(&m.muscle.outputs)
-            .chain(&m.muscle.jacobian.to_values())
-            .any(|x| !x.is_finite())
-        {
-            return Err(bad("a non-finite value".into()));
-        }
-        m.muscle.check_setup().map_err(|e| bad(e.0))?;
-        check_restored_drive(m.muscle.command, m.muscle.activation_level)
-            .and_then(|()| check_restored_history(&[m.muscle.history]))
-            .map_err(|e| bad(e.0))?;
-        if m.muscle.lambda <= 0.0 {
-            return Err(bad(format!("stretch {} must be > 0", m.muscle.lambda)));
-        }
-        m.muscle.refresh_stretch_range();
-        Ok(m)
+        state::decode(input)
     }
 }
 

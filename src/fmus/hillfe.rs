@@ -27,31 +27,25 @@ use std::sync::Arc;
 
 use crate::fe::discretization::Discretization;
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
-use crate::fe::muscle::{Muscle, MAX_SUBSTEPS};
-use crate::fe::newton::RESIDUAL_TOLERANCE;
 use crate::fe::step_map::{
-    built_with, discretization, rate_step, Committed, LastStep, Outputs, Quantity, StepLevel,
-    Stepped, Substepped, N_QUANTITIES,
+    built_with, discretization, Committed, Outputs, Quantity, StepLevel, Stepped, N_QUANTITIES,
 };
-use crate::fe::tangent::{
-    Anchor, Contraction, Increment, TangentCache, Trend, CONTRACTION_STEPS, TREND_LENGTH,
-};
-use crate::fmi2::bytes::{ByteReader, ByteWriter};
 use crate::fmi2::{
     Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
     VarType, Variability,
 };
 use crate::fmus::common::{
-    check_range, check_restored_drive, check_restored_history, check_unit_interval, input,
-    parameter, real, substep_tolerance_type, units, SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
+    check_range, check_unit_interval, input, parameter, real, substep_tolerance_type, units,
+    SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
 };
 use crate::law::activation::Decay;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
-use crate::law::{FibreHistory, FibreRate, ParamId, Params, PARAMETERS};
+use crate::law::{ParamId, Params, PARAMETERS};
 use crate::scene::{Scene, Value};
-use crate::step_control::MAX_CONTROLLED_TRIES;
 use std::marker::PhantomData;
+
+mod state;
 
 /// Default rest length: the paper's specimen.
 pub const DEFAULT_L0: f64 = crate::specimen::LENGTH;
@@ -626,404 +620,11 @@ impl<S: Scene> Model for HillFEModel<S> {
     }
 
     fn serialize(&self, out: &mut Vec<u8>) {
-        let params: Vec<f64> = PARAMETERS
-            .iter()
-            .map(|info| self.params.get(info.id))
-            .collect();
-        let mut w = ByteWriter::new(out);
-        w.f64s(&params)
-            .f64(self.l0)
-            .f64(self.area)
-            .bool(self.activation_dynamics)
-            .f64(self.initial_activation)
-            .i32(self.n_axial)
-            .i32(self.n_radial)
-            .f64(self.grading.axial)
-            .f64(self.grading.radial)
-            .i32(self.fibre_layout)
-            .bool(self.adaptive_substeps)
-            .f64(self.substep_tolerance)
-            .f64(self.command)
-            .f64s(self.length.as_slice())
-            .f64(self.command_rate)
-            .f64(self.length_rate)
-            .f64(self.activation_level)
-            .f64s(self.decay.map(|d| d.h).as_slice())
-            .f64s(&self.outputs)
-            .i32(self.newton_iterations);
-        match &self.state {
-            Some(c) => {
-                let (m, l) = (&c.muscle, &c.last);
-                let hist = |h: &[FibreHistory]| -> Vec<f64> {
-                    h.iter().flat_map(|x| [x.lambda_s, x.lambda_m]).collect()
-                };
-                // The geometry and mesh the muscle was built with (the
-                // parameters may have been set since, before a new
-                // initialization).
-                let d = &m.disc;
-                w.bool(true)
-                    .f64(d.l0)
-                    .f64(d.area)
-                    .i32(d.mesh.resolution.n_axial as i32)
-                    .i32(d.mesh.resolution.n_radial as i32)
-                    .f64(d.mesh.grading.axial)
-                    .f64(d.mesh.grading.radial)
-                    .i32(match d.fibres {
-                        FibreLayout::Axial => 0,
-                        FibreLayout::Meridian => 1,
-                    })
-                    .f64s(&m.x)
-                    .f64s(&hist(&m.history))
-                    .f64(m.length)
-                    .f64s(&hist(&l.start))
-                    .f64s(l.h.as_slice())
-                    .f64(l.activation)
-                    .f64(l.da_du);
-                // The solver's reused tangent is part of the state: its
-                // anchor, from which a restored instance forms it again
-                // (bit for bit), and the predictor's trend.
-                let solver = |w: &mut ByteWriter<'_>, m: &Muscle| {
-                    match &m.tangent {
-                        Some(c) => {
-                            let a = &c.anchor;
-                            w.bool(true)
-                                .f64s(&a.x)
-                                .f64(a.activation)
-                                .f64s(&hist(&a.start))
-                                .f64s(rate_step(a.rate).as_slice())
-                                .f64s(a.pressure.as_deref().unwrap_or(&[]));
-                        }
-                        None => {
-                            w.bool(false);
-                        }
-                    }
-                    w.u64(m.trend.increments.len() as u64);
-                    for inc in &m.trend.increments {
-                        w.f64s(&inc.dx).f64(inc.dl).f64(inc.da).f64(inc.h);
-                    }
-                    match m.trend.contraction {
-                        Some(c) => {
-                            w.bool(true).f64(c.theta).u64(c.age as u64);
-                        }
-                        None => {
-                            w.bool(false);
-                        }
-                    }
-                };
-                solver(&mut w, m);
-                // A substepped last step: the muscle before it and its
-                // inputs (its directional derivatives take it again).
-                match &c.substepped {
-                    Some(st) => {
-                        let (b, l) = (&st.before, &st.level);
-                        w.bool(true)
-                            .f64s(&b.x)
-                            .f64s(&hist(&b.history))
-                            .f64(b.length);
-                        solver(&mut w, b);
-                        w.bool(l.dynamics)
-                            .f64(l.s)
-                            .f64(l.a0)
-                            .f64(l.u)
-                            .f64(l.u_dot)
-                            .f64(l.h)
-                            .f64(st.end_length)
-                            .u64(st.pieces.len() as u64);
-                        for &(end, n) in &st.pieces {
-                            w.f64(end).u64(n as u64);
-                        }
-                    }
-                    None => {
-                        w.bool(false);
-                    }
-                }
-            }
-            None => {
-                w.bool(false);
-            }
-        }
+        state::encode(self, out);
     }
 
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
-        let bad = |m: String| ModelError(format!("HillMuscleFE state: {m}"));
-        let mut r = ByteReader::new(input);
-        let mut m = HillFEModel {
-            scene: PhantomData,
-            params: Params::default(),
-            l0: DEFAULT_L0,
-            area: DEFAULT_AREA,
-            activation_dynamics: true,
-            initial_activation: 0.0,
-            adaptive_substeps: false,
-            substep_tolerance: SUBSTEP_RTOL,
-            n_axial: DEFAULT_MESH.n_axial as i32,
-            n_radial: DEFAULT_MESH.n_radial as i32,
-            grading: DEFAULT_GRADING,
-            fibre_layout: 0,
-            command: 0.0,
-            length: None,
-            command_rate: 0.0,
-            length_rate: 0.0,
-            activation_level: 0.0,
-            state: None,
-            decay: None,
-            outputs: [0.0; N_QUANTITIES],
-            newton_iterations: 0,
-        };
-        let params = r.f64s()?;
-        if params.len() != PARAMETERS.len() {
-            return Err(bad(format!("{} parameters", params.len())));
-        }
-        for (info, &v) in PARAMETERS.iter().zip(&params) {
-            m.params.set(info.id, v).map_err(|e| bad(e.to_string()))?;
-        }
-        m.l0 = r.f64()?;
-        m.area = r.f64()?;
-        m.activation_dynamics = r.bool()?;
-        m.initial_activation = r.f64()?;
-        for var in [Var::NAxial, Var::NRadial] {
-            let v = r.i32()?;
-            m.set_integer(var, v).map_err(|e| bad(e.0))?;
-        }
-        for var in [Var::AxialGrading, Var::RadialGrading] {
-            let grading = r.f64()?;
-            m.set_real(var, grading).map_err(|e| bad(e.0))?;
-        }
-        let layout = r.i32()?;
-        m.set_integer(Var::FibreLayout, layout)
-            .map_err(|e| bad(e.0))?;
-        m.adaptive_substeps = r.bool()?;
-        let tolerance = r.f64()?;
-        m.set_real(Var::SubstepTolerance, tolerance)
-            .map_err(|e| bad(e.0))?;
-        m.command = r.f64()?;
-        m.length = match r.f64s()?.as_slice() {
-            [] => None,
-            &[l] => Some(l),
-            other => return Err(bad(format!("bad length {other:?}"))),
-        };
-        m.command_rate = r.f64()?;
-        m.length_rate = r.f64()?;
-        m.activation_level = r.f64()?;
-        m.decay = match r.f64s()?.as_slice() {
-            [] => None,
-            &[h] if h.is_finite() && h > 0.0 => Some(Decay::new(m.params.s, h)),
-            other => return Err(bad(format!("bad activation decay step {other:?}"))),
-        };
-        let outputs = r.f64s()?;
-        if outputs.len() != N_QUANTITIES {
-            return Err(bad(format!("{} outputs", outputs.len())));
-        }
-        m.outputs.copy_from_slice(&outputs);
-        m.newton_iterations = r.i32()?;
-        m.check_setup().map_err(|e| bad(e.0))?;
-        let finite = [m.command, m.command_rate, m.length_rate, m.activation_level];
-        if finite.iter().chain(&m.outputs).any(|x| !x.is_finite()) {
-            return Err(bad("a non-finite value".into()));
-        }
-        check_restored_drive(m.command, m.activation_level).map_err(|e| bad(e.0))?;
-        if r.bool()? {
-            let (l0, area) = (r.f64()?, r.f64()?);
-            let (n_axial, n_radial) = (r.i32()?, r.i32()?);
-            let grading = Grading {
-                axial: r.f64()?,
-                radial: r.f64()?,
-            };
-            let layout = r.i32()?;
-            check_range("L0", l0, L0_RANGE).map_err(|e| bad(e.0))?;
-            check_range("area", area, AREA_RANGE).map_err(|e| bad(e.0))?;
-            check_grading(grading).map_err(|e| bad(e.0))?;
-            let in_range = |v: i32, (lo, hi): (i32, i32)| (lo..=hi).contains(&v);
-            if !(in_range(n_axial, N_AXIAL_RANGE)
-                && in_range(n_radial, N_RADIAL_RANGE)
-                && in_range(layout, (0, 1)))
-            {
-                return Err(bad(format!(
-                    "bad mesh {n_axial} x {n_radial}, fibre layout {layout}"
-                )));
-            }
-            let disc = discretization(
-                None,
-                l0,
-                area,
-                Resolution {
-                    n_axial: n_axial as usize,
-                    n_radial: n_radial as usize,
-                },
-                grading,
-                if layout == 1 {
-                    FibreLayout::Meridian
-                } else {
-                    FibreLayout::Axial
-                },
-            )
-            .map_err(ModelError)?;
-            let pairs = |v: Vec<f64>| -> Result<Vec<FibreHistory>, ModelError> {
-                if v.len() != 2 * disc.n_elements() || v.iter().any(|x| !x.is_finite()) {
-                    return Err(bad(format!("{} history values", v.len())));
-                }
-                Ok(v.chunks(2)
-                    .map(|c| FibreHistory {
-                        lambda_s: c[0],
-                        lambda_m: c[1],
-                    })
-                    .collect())
-            };
-            let x = r.f64s()?;
-            if x.len() != 3 * disc.n_nodes() || x.iter().any(|v| !v.is_finite()) {
-                return Err(bad(format!("{} position values", x.len())));
-            }
-            let history = pairs(r.f64s()?)?;
-            let length = r.f64()?;
-            let start = pairs(r.f64s()?)?;
-            let h = match r.f64s()?.as_slice() {
-                [] => None,
-                &[h] if h.is_finite() && h > 0.0 => Some(h),
-                other => return Err(bad(format!("bad step {other:?}"))),
-            };
-            let activation = r.f64()?;
-            let da_du = r.f64()?;
-            if !(length.is_finite() && length > 0.0 && activation.is_finite() && da_du.is_finite())
-            {
-                return Err(bad("a non-finite value".into()));
-            }
-            check_restored_history(&history)
-                .and_then(|()| check_unit_interval("committed activation level", activation))
-                .map_err(|e| bad(e.0))?;
-            let n_dofs = 3 * disc.n_nodes();
-            let positions = |v: Vec<f64>| -> Result<Vec<f64>, ModelError> {
-                if v.len() != n_dofs || v.iter().any(|x| !x.is_finite()) {
-                    return Err(bad(format!("{} position values", v.len())));
-                }
-                Ok(v)
-            };
-            let solver = |r: &mut ByteReader<'_, '_>| -> Result<(Option<Arc<TangentCache>>, Trend), ModelError> {
-                let tangent = if r.bool()? {
-                    let ax = positions(r.f64s()?)?;
-                    let activation = r.f64()?;
-                    let start = pairs(r.f64s()?)?;
-                    let rate = match r.f64s()?.as_slice() {
-                        [] => FibreRate::Isometric,
-                        &[h] if h.is_finite() && h > 0.0 => FibreRate::Step { h },
-                        other => return Err(bad(format!("bad anchor step {other:?}"))),
-                    };
-                    if !activation.is_finite() {
-                        return Err(bad("a non-finite anchor activation".into()));
-                    }
-                    let pressure = match r.f64s()? {
-                        v if v.is_empty() => None,
-                        v if v.len() == disc.n_nodes() && v.iter().all(|p| p.is_finite()) => Some(v),
-                        v => return Err(bad(format!("{} anchor pressure values", v.len()))),
-                    };
-                    Some(Arc::new(TangentCache::new(Anchor {
-                        x: ax,
-                        activation,
-                        start,
-                        rate,
-                        pressure,
-                    })))
-                } else {
-                    None
-                };
-                let n_increments = r.u64()?;
-                if n_increments > TREND_LENGTH as u64 {
-                    return Err(bad(format!("{n_increments} predictor increments")));
-                }
-                let mut trend = Trend::default();
-                for _ in 0..n_increments {
-                    let dx = positions(r.f64s()?)?;
-                    let (dl, da, h) = (r.f64()?, r.f64()?, r.f64()?);
-                    if !(dl.is_finite() && da.is_finite() && h.is_finite() && h > 0.0) {
-                        return Err(bad("a bad predictor increment".into()));
-                    }
-                    trend.increments.push(Increment { dx, dl, da, h });
-                }
-                if r.bool()? {
-                    let (theta, age) = (r.f64()?, r.u64()?);
-                    if !(theta.is_finite() && theta >= 0.0 && age <= CONTRACTION_STEPS as u64) {
-                        return Err(bad(format!("a bad contraction ({theta}, {age})")));
-                    }
-                    trend.contraction = Some(Contraction {
-                        theta,
-                        age: age as usize,
-                    });
-                }
-                Ok((tangent, trend))
-            };
-            let (tangent, trend) = solver(&mut r)?;
-            let substepped = if r.bool()? {
-                let x = positions(r.f64s()?)?;
-                let history = pairs(r.f64s()?)?;
-                let length = r.f64()?;
-                let (tangent, trend) = solver(&mut r)?;
-                let dynamics = r.bool()?;
-                // s, a0, u, u_dot, h, end length (the level's end follows).
-                let v: Vec<f64> = (0..6).map(|_| r.f64()).collect::<Result<_, _>>()?;
-                let n_pieces = r.u64()?;
-                if !(1..=u64::from(MAX_CONTROLLED_TRIES)).contains(&n_pieces) {
-                    return Err(bad(format!("{n_pieces} pieces of a substepped step")));
-                }
-                let mut pieces = Vec::with_capacity(n_pieces as usize);
-                for _ in 0..n_pieces {
-                    let (end, n) = (r.f64()?, r.u64()?);
-                    let previous = pieces.last().map_or(0.0, |&(t, _)| t);
-                    if !(end > previous && end <= v[4] && (1..=MAX_SUBSTEPS as u64).contains(&n)) {
-                        return Err(bad(format!("a bad piece ({end}, {n})")));
-                    }
-                    pieces.push((end, n as usize));
-                }
-                let valid = length.is_finite()
-                    && length > 0.0
-                    && v.iter().all(|x| x.is_finite())
-                    && v[4] > 0.0
-                    && v[5] > 0.0
-                    && pieces.last().map(|&(t, _)| t) == Some(v[4]);
-                if !valid {
-                    return Err(bad("a bad substepped step".into()));
-                }
-                Some(Substepped {
-                    before: Muscle {
-                        disc: disc.clone(),
-                        x,
-                        history,
-                        length,
-                        tangent,
-                        trend,
-                        tolerance: RESIDUAL_TOLERANCE,
-                    },
-                    level: StepLevel::new(
-                        dynamics,
-                        v[0],
-                        v[1],
-                        v[2],
-                        v[3],
-                        v[4],
-                        Decay::new(v[0], v[4]).value,
-                    ),
-                    end_length: v[5],
-                    pieces,
-                })
-            } else {
-                None
-            };
-            let muscle = Muscle {
-                disc,
-                x,
-                history,
-                length,
-                tangent,
-                trend,
-                tolerance: RESIDUAL_TOLERANCE,
-            };
-            let last = LastStep {
-                start,
-                h,
-                activation,
-                da_du,
-            };
-            m.state = Some(Committed::new(muscle, last, substepped));
-        }
-        Ok(m)
+        state::decode(input)
     }
 }
 
@@ -1243,7 +844,7 @@ pub const FE_HTML: &str = include_str!("doc/hillfe.html");
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fe::step_map::outputs;
+    use crate::fe::step_map::{outputs, Substepped};
     use crate::fmus::common::{assert_restore_refuses, restored};
 
     /// The last step's map when it took substeps.

@@ -1,4 +1,5 @@
 //! The FMUs: models with their variable tables.
+pub mod codec;
 pub mod common;
 pub mod hill1d;
 #[cfg(feature = "fe")]
