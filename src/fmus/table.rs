@@ -445,12 +445,13 @@ pub fn scalar_variables<V: Copy + PartialEq + std::fmt::Debug>(
 /// `table_set_derivative` that [`model_access!`] puts behind
 /// [`crate::fmi2::Model`].
 ///
-/// A row is `Variant = ROW => Kind(ACCESS)` (or `Variant(id: Inner) in ROWS
-/// => ...` for a family: `ROWS` yields `(Inner, Row)` pairs), where `Kind`
-/// is `Real`, `Integer` or `Boolean` and `ACCESS`, written with the
-/// model bound to `m` and the admitted value to `v`, is a place (read and
-/// written), `get EXPR, set EXPR`, or `get EXPR` (read only); `, der
-/// PLACE` gives an input's derivative.
+/// A row is `Variant = ROW => Kind(ACCESS);`, or `Variant(id: Inner) =
+/// ROWS => Kind(ACCESS);` for a family of rows (`ROWS` yields `(Inner,
+/// Row)` pairs). `Kind` is `Real`, `Integer` or `Boolean`; `ACCESS`,
+/// written with the model bound to `m` and the admitted value to `v` (the
+/// names given after `as`), is a place (read and written), `get EXPR, set
+/// EXPR`, or `get EXPR` (read only); a trailing `, der PLACE` is where an
+/// input's derivative goes.
 macro_rules! variables {
     (
         $(#[$enum_attr:meta])*
@@ -471,6 +472,7 @@ macro_rules! variables {
 
         /// Every variable the model can expose, in table order (a scene
         /// exposes a subset, [`crate::scene::SceneSpec::variables`]).
+        #[allow(clippy::vec_init_then_push)]
         pub fn all_variables() -> Vec<$crate::fmi2::ScalarVariable<$Var>> {
             let mut rows = Vec::new();
             $( $crate::fmus::table::variables!(@rows rows, $Var, $Variant, $row $(, $id)?); )*
@@ -627,3 +629,133 @@ macro_rules! model_access {
     };
 }
 pub(crate) use model_access;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::law::Params;
+
+    /// A toy model with one parameter and one output: adding either is one
+    /// row (and, for an output, what it depends on).
+    #[derive(Default)]
+    struct Toy {
+        gain: f64,
+        y: f64,
+    }
+
+    variables! {
+        /// The toy's variables.
+        pub enum ToyVar;
+        impl[] Toy as (m, v) {
+            Gain = parameter(
+                "gain",
+                "A gain",
+                real("1", Some(2.0), Some(Range { min: 0.0, max: 10.0 })),
+                Check::Finite,
+            ) => Real(m.gain);
+            Y = output("y", "The gain times the input", "1", gain) => Real(get m.y);
+        }
+    }
+
+    /// What `y` depends on.
+    fn gain() -> Vec<ToyVar> {
+        vec![ToyVar::Gain]
+    }
+
+    /// The table gives the toy its modelDescription rows (dependencies
+    /// named), get and set, and the range check of the row.
+    #[test]
+    fn a_row_is_a_variable_with_its_get_set_and_range() {
+        let vars = all_variables();
+        assert_eq!(vars.len(), 2);
+        let (gain, y) = (&vars[0], &vars[1]);
+        assert_eq!((gain.name, gain.id), ("gain", ToyVar::Gain));
+        assert_eq!(gain.causality, Causality::Parameter);
+        assert_eq!(
+            gain.ty,
+            real(
+                "1",
+                Some(2.0),
+                Some(Range {
+                    min: 0.0,
+                    max: 10.0
+                })
+            )
+        );
+        assert_eq!(
+            (y.name, y.id, y.causality),
+            ("y", ToyVar::Y, Causality::Output)
+        );
+        assert_eq!(y.depends_on, ["gain"]);
+
+        let mut m = Toy::default();
+        assert!(matches!(
+            m.table_set(ToyVar::Gain, Value::Real(3.0)),
+            Ok(SetOutcome::Ok)
+        ));
+        assert_eq!(m.table_get(ToyVar::Gain), Value::Real(3.0));
+        let refused = |r: Result<SetOutcome, ModelError>| r.unwrap_err().0;
+        assert_eq!(
+            refused(m.table_set(ToyVar::Gain, Value::Real(11.0))),
+            "gain = 11 is out of range: must be finite and in [0, 10]"
+        );
+        assert_eq!(m.table_get(ToyVar::Gain), Value::Real(3.0));
+        assert_eq!(
+            refused(m.table_set(ToyVar::Y, Value::Real(1.0))),
+            "not a Real input or parameter"
+        );
+        assert_eq!(
+            refused(m.table_set(ToyVar::Gain, Value::Boolean(true))),
+            "not a Boolean parameter"
+        );
+        assert_eq!(
+            m.table_set_derivative(ToyVar::Gain, 1.0).unwrap_err().0,
+            "not a Real input"
+        );
+    }
+
+    /// The shared rows refuse, clamp and name values as the models did by
+    /// hand: the law's own message for its parameters, the unit interval
+    /// without "finite", the activation command clamped with a warning.
+    #[test]
+    fn the_checks_give_the_messages_users_see() {
+        let err = |r: Result<(f64, SetOutcome), ModelError>| r.unwrap_err().0;
+        for info in &PARAMETERS {
+            let row: Row<()> = law_parameter(info);
+            let bad = info.range.max * 2.0 + 1.0;
+            assert_eq!(
+                err(bad.admit(&row)),
+                Params::check(info.id, bad).unwrap_err().to_string()
+            );
+        }
+        assert_eq!(
+            err(f64::NAN.admit(&l0::<()>("", 1.0))),
+            "L0 = NaN is out of range: must be finite and in [1e-4, 10]"
+        );
+        assert_eq!(
+            err(2.0.admit(&initial_activation::<()>())),
+            "initial_activation = 2 is out of range: must be in [0, 1]"
+        );
+        assert_eq!(
+            err(f64::NAN.admit(&activation::<()>())),
+            "activation = NaN is out of range: must be in [0, 1]"
+        );
+        match 1.5.admit(&activation::<()>()) {
+            Ok((x, SetOutcome::Warning { message, log_once })) => {
+                assert_eq!(x, 1.0);
+                assert!(log_once);
+                assert_eq!(
+                    message,
+                    "activation = 1.5 is outside [0, 1]; clamped to 1 (logged once per instance)"
+                );
+            }
+            other => panic!("{other:?}"),
+        }
+        let layers: Row<()> = parameter("n", "", integer(4, (1, 96)), Check::Closed);
+        assert_eq!(
+            0.admit(&layers).unwrap_err().0,
+            "n = 0 is out of range: must be in [1, 96]"
+        );
+        assert!(matches!(96.admit(&layers), Ok((96, SetOutcome::Ok))));
+    }
+}
