@@ -1,6 +1,7 @@
-//! What the muscle FMUs share: units, variable-table helpers, range checks.
+//! What the muscle FMUs share: units, the substep tolerance, range checks
+//! of a restored state (the shared variable rows are in [`super::table`]).
 
-use crate::fmi2::{Causality, ModelError, ScalarVariable, Unit, VarType, Variability};
+use crate::fmi2::{ModelError, Unit};
 use crate::law::hill_fibre::FibreHistory;
 use crate::law::params::Range;
 
@@ -16,17 +17,6 @@ pub const SUBSTEP_TOLERANCE_RANGE: Range = Range {
     max: 1.0,
 };
 
-/// The type of both models' `substep_tolerance` parameter: a fraction of
-/// sigma0, [`SUBSTEP_RTOL`] by default, within [`SUBSTEP_TOLERANCE_RANGE`].
-pub fn substep_tolerance_type() -> VarType {
-    real(
-        "1",
-        Some(SUBSTEP_RTOL),
-        Some(SUBSTEP_TOLERANCE_RANGE.min),
-        Some(SUBSTEP_TOLERANCE_RANGE.max),
-    )
-}
-
 /// The units both muscle FMUs declare.
 pub fn units() -> Vec<Unit> {
     let u = |name, kg, m, s| Unit { name, kg, m, s };
@@ -40,54 +30,6 @@ pub fn units() -> Vec<Unit> {
         u("Pa", 1, -1, -2),
         u("1/Pa", -1, 1, 2),
     ]
-}
-
-/// A Real type with a unit, start and range.
-pub fn real(unit: &'static str, start: Option<f64>, min: Option<f64>, max: Option<f64>) -> VarType {
-    VarType::Real {
-        unit: Some(unit),
-        start,
-        min,
-        max,
-    }
-}
-
-/// A fixed parameter.
-pub fn parameter<V>(
-    name: &'static str,
-    description: &'static str,
-    ty: VarType,
-    id: V,
-) -> ScalarVariable<V> {
-    ScalarVariable {
-        name,
-        description,
-        causality: Causality::Parameter,
-        variability: Variability::Fixed,
-        initial: None,
-        ty,
-        depends_on: vec![],
-        id,
-    }
-}
-
-/// A continuous input.
-pub fn input<V>(
-    name: &'static str,
-    description: &'static str,
-    ty: VarType,
-    id: V,
-) -> ScalarVariable<V> {
-    ScalarVariable {
-        name,
-        description,
-        causality: Causality::Input,
-        variability: Variability::Continuous,
-        initial: None,
-        ty,
-        depends_on: vec![],
-        id,
-    }
 }
 
 /// `v` in `range`, else an error naming `name` and the range.

@@ -1,101 +1,134 @@
 //! `HillMuscle1D`: the 1D muscle ([`crate::muscle1d`]) as an FMI 2.0
-//! Co-Simulation model. This file only maps: the variable table
-//! ([`all_variables`], [`info_for`]), get/set of the variables onto the
-//! muscle's parameters and inputs with their range checks, the muscle's
+//! Co-Simulation model. This file only maps: the variable table (one row a
+//! variable, [`variables!`]: [`Var`], [`all_variables`]), the muscle's
 //! errors onto the layer's (same messages), and the state codec. What a step
 //! computes, and the conventions, are the muscle's (MODEL_NOTES "The 1D Hill
 //! reduction" and "Co-simulation conventions"; the FMU's documentation,
 //! [`LAW_HTML`]).
 
-use super::common::{
-    check_range, check_unit_interval, input, parameter, real, substep_tolerance_type, units,
-};
+use super::common::units;
 pub use super::common::{SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE};
-use crate::fmi2::{
-    Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
-    VarType, Variability,
-};
-use crate::law::params::{AREA_RANGE, L0_RANGE, LENGTH_RANGE};
-use crate::law::{ParamId, Params, PARAMETERS};
+use super::table::{self, model_access, output, variables, Row, STATIC_LAW};
+use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError};
+use crate::law::ParamId;
 pub use crate::muscle1d::{piece_error, Output, StepStatistics, DEFAULT_AREA, DEFAULT_L0};
 use crate::muscle1d::{Discard, Input, Muscle1D, N_OUT};
-use crate::scene::{LawOf, Scene, Value};
+use crate::scene::{LawOf, Scene};
 
 mod state;
 
-/// A variable of `HillMuscle1D`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Var {
-    Param(ParamId),
-    L0,
-    Area,
-    ActivationDynamics,
-    InitialActivation,
-    AdaptiveSubsteps,
-    SubstepTolerance,
-    Activation,
-    Length,
-    Out(Output),
+variables! {
+    /// A variable of `HillMuscle1D`, in table order: the law's parameters,
+    /// geometry and activation options, the inputs, the outputs.
+    pub enum Var;
+    impl[S: Scene] Hill1DModel<S> as (m, v) {
+        /// A parameter of the law (MODEL_NOTES "Parameters").
+        Param(id: ParamId) = table::law_parameters()
+            => Real(get m.muscle.params.get(id), set m.muscle.params.set(id, v).map_err(|e| ModelError(e.to_string()))?);
+        L0 = table::l0("Rest length of the muscle", DEFAULT_L0) => Real(m.muscle.l0);
+        Area = table::area(
+            "Reference cross-section area (default: the mean cross-section V0/L0 of the paper's fusiform specimen)",
+            DEFAULT_AREA,
+        ) => Real(m.muscle.area);
+        ActivationDynamics = table::activation_dynamics() => Boolean(m.muscle.activation_dynamics);
+        InitialActivation = table::initial_activation() => Real(m.muscle.initial_activation);
+        AdaptiveSubsteps = table::adaptive_substeps(
+            "Cut a step into substeps where the error estimate of the CE-SEE update exceeds substep_tolerance; false: one backward-Euler step per communication step (first order in h)",
+            true,
+        ) => Boolean(m.muscle.adaptive_substeps);
+        SubstepTolerance = table::substep_tolerance(
+            "Tolerance of the estimated local error of the SEE stress per substep, as a fraction of sigma0",
+        ) => Real(m.muscle.substep_tolerance);
+        Activation = table::activation() => Real(m.muscle.command), der m.muscle.command_rate;
+        Length = table::length(DEFAULT_L0)
+            => Real(get m.muscle.length(), set m.muscle.length = Some(v)), der m.muscle.length_rate;
+        /// An output ([`OUTPUTS`]); `stiffness` is d force / d length of the
+        /// last step map, the same number as
+        /// fmi2GetDirectionalDerivative(force, length).
+        Out(o: Output) = OUTPUTS => Real(get m.muscle.output(o));
+    }
 }
 
-/// The stored outputs' names, descriptions and units, in [`Output`] order
-/// (`stiffness`, a partial, has its own row in [`all_variables`]).
-const OUTPUTS: [(Output, &str, &str, Option<&str>); N_OUT] = [
+/// The outputs, in [`Output`] order (`stiffness`, a partial, last: the full
+/// `HillMuscle1D` does not expose it).
+const OUTPUTS: [(Output, Row<Var>); N_OUT + 1] = [
     (
         Output::Force,
-        "force",
-        "Axial muscle force, tension positive",
-        Some("N"),
+        table::force("Axial muscle force, tension positive", force_deps),
     ),
-    (
-        Output::Stress,
-        "stress",
-        "Engineering (nominal) stress: force / area",
-        Some("Pa"),
-    ),
+    (Output::Stress, table::stress(state_deps)),
     (
         Output::CauchyStress,
-        "cauchy_stress",
-        "Axial Cauchy (true) stress",
-        Some("Pa"),
+        table::cauchy_stress("Axial Cauchy (true) stress", state_deps),
     ),
     (
         Output::ActivationLevel,
-        "activation_level",
-        "Activation level a",
-        Some("1"),
+        table::activation_level(activation_deps),
     ),
     (
         Output::FibreStretch,
-        "fibre_stretch",
-        "Modified fibre stretch J^(-1/3) lambda",
-        Some("1"),
+        table::fibre_stretch("Modified fibre stretch J^(-1/3) lambda", state_deps),
     ),
     (
         Output::CeStretch,
-        "ce_stretch",
-        "Contractile element stretch lambda_m",
-        Some("1"),
+        table::ce_stretch("Contractile element stretch lambda_m", state_deps),
     ),
     (
         Output::SeeStretch,
-        "see_stretch",
-        "Series elastic element stretch lambda_s",
-        Some("1"),
+        table::see_stretch("Series elastic element stretch lambda_s", state_deps),
     ),
     (
         Output::ActiveStress,
-        "active_stress",
-        "SEE (= CE) nominal stress sigma_s",
-        Some("Pa"),
+        table::active_stress("SEE (= CE) nominal stress sigma_s", state_deps),
     ),
     (
         Output::PassiveStress,
-        "passive_stress",
-        "Rest of the nominal stress: stress - active_stress",
-        Some("Pa"),
+        table::passive_stress(
+            "Rest of the nominal stress: stress - active_stress",
+            state_deps,
+        ),
+    ),
+    (
+        Output::Stiffness,
+        output(
+            "stiffness",
+            "Stiffness d force / d length of the step map that produced the current outputs (the tangent of the last step, fibre history fixed; for masters that cannot call fmi2GetDirectionalDerivative)",
+            "N/m",
+            force_deps,
+        ),
     ),
 ];
+
+// Dependencies at initialization (the isometric equilibrium, f_v = 1: S,
+// kc, ke, d and lambda_dot_min play no part). The activation level is
+// initial_activation, or the command without dynamics; everything else also
+// depends on the length, L0 and the static law; only the force depends on
+// the area. Outputs have no direct feedthrough
+// (`ModelInfo::direct_feedthrough`).
+
+/// What the activation level depends on.
+fn activation_deps() -> Vec<Var> {
+    vec![
+        Var::Activation,
+        Var::ActivationDynamics,
+        Var::InitialActivation,
+    ]
+}
+
+/// What the state outputs depend on.
+fn state_deps() -> Vec<Var> {
+    let mut deps = activation_deps();
+    deps.extend([Var::Length, Var::L0]);
+    deps.extend(STATIC_LAW.map(Var::Param));
+    deps
+}
+
+/// What the force (and `stiffness`) depend on.
+fn force_deps() -> Vec<Var> {
+    let mut deps = state_deps();
+    deps.push(Var::Area);
+    deps
+}
 
 /// The full `HillMuscle1D`: every component, input and output of the 1D
 /// model (the scene `fmu_build/scenes/hill_muscle_1d.toml`).
@@ -168,132 +201,14 @@ impl<S: Scene> Model for Hill1DModel<S> {
         // resolved; the setters check them again).
         let all = all_variables();
         crate::scene::apply_settings(&S::SPEC, &all, |var, value| {
-            match value {
-                Value::Real(x) => m.set_real(var, x),
-                Value::Integer(i) => m.set_integer(var, i),
-                Value::Boolean(b) => m.set_boolean(var, b),
-            }
-            .map(|_| ())
-            .map_err(|e| e.0)
+            m.table_set(var, value).map(|_| ()).map_err(|e| e.0)
         })
         .expect("the scene's settings are valid");
         m.initialize().expect("the scene's start values are valid");
         m
     }
 
-    fn get_real(&self, var: Var) -> f64 {
-        match var {
-            Var::Param(id) => self.muscle.params.get(id),
-            Var::L0 => self.muscle.l0,
-            Var::Area => self.muscle.area,
-            Var::InitialActivation => self.muscle.initial_activation,
-            Var::Activation => self.muscle.command,
-            Var::Length => self.muscle.length(),
-            // d force / d length of the last step map: the same number as
-            // fmi2GetDirectionalDerivative(force, length).
-            Var::Out(o) => self.muscle.output(o),
-            Var::SubstepTolerance => self.muscle.substep_tolerance,
-            Var::ActivationDynamics | Var::AdaptiveSubsteps => f64::NAN,
-        }
-    }
-
-    fn get_integer(&self, _var: Var) -> i32 {
-        0
-    }
-
-    fn get_boolean(&self, var: Var) -> bool {
-        match var {
-            Var::ActivationDynamics => self.muscle.activation_dynamics,
-            Var::AdaptiveSubsteps => self.muscle.adaptive_substeps,
-            _ => false,
-        }
-    }
-
-    fn set_real(&mut self, var: Var, value: f64) -> Result<SetOutcome, ModelError> {
-        match var {
-            Var::Param(id) => self
-                .muscle
-                .params
-                .set(id, value)
-                .map_err(|e| ModelError(e.to_string()))?,
-            Var::L0 => {
-                check_range("L0", value, L0_RANGE)?;
-                self.muscle.l0 = value;
-            }
-            Var::Area => {
-                check_range("area", value, AREA_RANGE)?;
-                self.muscle.area = value;
-            }
-            Var::InitialActivation => {
-                check_unit_interval("initial_activation", value)?;
-                self.muscle.initial_activation = value;
-            }
-            Var::SubstepTolerance => {
-                check_range("substep_tolerance", value, SUBSTEP_TOLERANCE_RANGE)?;
-                self.muscle.substep_tolerance = value;
-            }
-            Var::Length => {
-                check_range("length", value, LENGTH_RANGE)?;
-                self.muscle.length = Some(value);
-            }
-            Var::Activation => {
-                if value.is_nan() {
-                    return Err(ModelError(format!(
-                        "activation = {value} is out of range: must be in [0, 1]"
-                    )));
-                }
-                let clamped = value.clamp(0.0, 1.0);
-                self.muscle.command = clamped;
-                if clamped != value {
-                    return Ok(SetOutcome::Warning {
-                        message: format!("activation = {value} is outside [0, 1]; clamped to {clamped} (logged once per instance)"),
-                        log_once: true,
-                    });
-                }
-            }
-            Var::ActivationDynamics | Var::AdaptiveSubsteps | Var::Out(_) => {
-                return Err(ModelError("not a Real input or parameter".into()));
-            }
-        }
-        Ok(SetOutcome::Ok)
-    }
-
-    fn set_integer(&mut self, _var: Var, _value: i32) -> Result<SetOutcome, ModelError> {
-        Err(ModelError("HillMuscle1D has no Integer variables".into()))
-    }
-
-    fn set_boolean(&mut self, var: Var, value: bool) -> Result<SetOutcome, ModelError> {
-        match var {
-            Var::ActivationDynamics => {
-                self.muscle.activation_dynamics = value;
-                Ok(SetOutcome::Ok)
-            }
-            Var::AdaptiveSubsteps => {
-                self.muscle.adaptive_substeps = value;
-                Ok(SetOutcome::Ok)
-            }
-            _ => Err(ModelError("not a Boolean parameter".into())),
-        }
-    }
-
-    fn set_real_input_derivative(
-        &mut self,
-        var: Var,
-        _order: i32,
-        value: f64,
-    ) -> Result<(), ModelError> {
-        if !value.is_finite() {
-            return Err(ModelError(format!(
-                "input derivative {value} must be finite"
-            )));
-        }
-        match var {
-            Var::Activation => self.muscle.command_rate = value,
-            Var::Length => self.muscle.length_rate = value,
-            _ => return Err(ModelError("not a Real input".into())),
-        }
-        Ok(())
-    }
+    model_access!();
 
     /// Isometric equilibrium at the initial length and `initial_activation`
     /// (with `activation_dynamics = false`: at the command).
@@ -361,148 +276,6 @@ pub fn info_for(spec: &crate::scene::SceneSpec) -> ModelInfo {
         max_input_derivative_order: 1,
         direct_feedthrough: false,
     }
-}
-
-/// Every variable the 1D model can expose, in table order: the law's
-/// parameters, geometry and activation options, the inputs, the outputs
-/// (`stiffness` last). The full `HillMuscle1D` exposes all but `stiffness`;
-/// a scene exposes a subset ([`crate::scene::SceneSpec::variables`]).
-pub fn all_variables() -> Vec<ScalarVariable<Var>> {
-    let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
-        .iter()
-        .map(|info| {
-            parameter(
-                info.name,
-                info.description,
-                real(
-                    info.unit,
-                    Some(info.default),
-                    Some(info.range.min),
-                    Some(info.range.max),
-                ),
-                Var::Param(info.id),
-            )
-        })
-        .collect();
-    v.push(parameter(
-        "L0",
-        "Rest length of the muscle",
-        real(
-            "m",
-            Some(DEFAULT_L0),
-            Some(L0_RANGE.min),
-            Some(L0_RANGE.max),
-        ),
-        Var::L0,
-    ));
-    v.push(parameter(
-        "area",
-        "Reference cross-section area (default: the mean cross-section V0/L0 of the paper's fusiform specimen)",
-        real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
-        Var::Area,
-    ));
-    v.push(parameter(
-        "activation_dynamics",
-        "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
-        VarType::Boolean { start: Some(true) },
-        Var::ActivationDynamics,
-    ));
-    v.push(parameter(
-        "initial_activation",
-        "Activation level at the start time",
-        real("1", Some(0.0), Some(0.0), Some(1.0)),
-        Var::InitialActivation,
-    ));
-    v.push(parameter(
-        "adaptive_substeps",
-        "Cut a step into substeps where the error estimate of the CE-SEE update exceeds substep_tolerance; false: one backward-Euler step per communication step (first order in h)",
-        VarType::Boolean { start: Some(true) },
-        Var::AdaptiveSubsteps,
-    ));
-    v.push(parameter(
-        "substep_tolerance",
-        "Tolerance of the estimated local error of the SEE stress per substep, as a fraction of sigma0",
-        substep_tolerance_type(),
-        Var::SubstepTolerance,
-    ));
-    v.push(input(
-        "activation",
-        "Activation command u in [0, 1] (values outside are clamped with a warning)",
-        real("1", Some(0.0), Some(0.0), Some(1.0)),
-        Var::Activation,
-    ));
-    v.push(input(
-        "length",
-        "Muscle length reached at the end of the step",
-        real(
-            "m",
-            Some(DEFAULT_L0),
-            Some(LENGTH_RANGE.min),
-            Some(LENGTH_RANGE.max),
-        ),
-        Var::Length,
-    ));
-    // Dependencies at initialization (the isometric equilibrium, f_v = 1:
-    // S, kc, ke, d and lambda_dot_min play no part). The activation level
-    // is initial_activation, or the command without dynamics; everything
-    // else also depends on the length, L0 and the static law; only the
-    // force depends on the area. Outputs have no direct feedthrough
-    // (`ModelInfo::direct_feedthrough`).
-    let activation_deps = ["activation", "activation_dynamics", "initial_activation"];
-    let static_law = [
-        ParamId::B,
-        ParamId::C,
-        ParamId::Alpha,
-        ParamId::Beta,
-        ParamId::A,
-        ParamId::Sigma0,
-        ParamId::LambdaOpt,
-        ParamId::Dcomp,
-        ParamId::K,
-    ];
-    let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
-    state_deps.extend(["length", "L0"]);
-    state_deps.extend(static_law.map(|id| Params::info(id).name));
-    let deps = |out: Output| -> Vec<&'static str> {
-        match out {
-            Output::ActivationLevel => activation_deps.to_vec(),
-            Output::Force => [state_deps.as_slice(), &["area"]].concat(),
-            _ => state_deps.clone(),
-        }
-    };
-    for (out, name, description, unit) in OUTPUTS {
-        v.push(ScalarVariable {
-            name,
-            description,
-            causality: Causality::Output,
-            variability: Variability::Continuous,
-            initial: Some(Initial::Calculated),
-            ty: VarType::Real {
-                unit,
-                start: None,
-                min: None,
-                max: None,
-            },
-            depends_on: deps(out),
-            id: Var::Out(out),
-        });
-    }
-    v.push(ScalarVariable {
-        name: "stiffness",
-        description: "Stiffness d force / d length of the step map that produced the current outputs (the tangent of the last step, fibre history fixed; for masters that cannot call fmi2GetDirectionalDerivative)",
-        causality: Causality::Output,
-        variability: Variability::Continuous,
-        initial: Some(Initial::Calculated),
-        ty: VarType::Real {
-            unit: Some("N/m"),
-            start: None,
-            min: None,
-            max: None,
-        },
-        depends_on: deps(Output::Force),
-        id: Var::Out(Output::Stiffness),
-    });
-    v
 }
 
 /// The law and the conventions, for the FMU's `documentation/index.html`.

@@ -21,31 +21,27 @@
 //! mean section, the same default `area` as `HillMuscle1D`). The mesh
 //! (`n_axial` × `n_radial`, [`crate::fe::mesh`]) is built at initialization.
 //!
-//! The outputs are the FE muscle's [`Quantity`] values, in table order.
+//! The outputs are the FE muscle's [`Output`] (its `Quantity`) values, in
+//! table order.
 
 use std::sync::Arc;
 
 use crate::fe::discretization::Discretization;
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::step_map::{
-    built_with, discretization, Committed, Outputs, Quantity, StepLevel, Stepped, N_QUANTITIES,
+    built_with, discretization, Committed, Outputs, StepLevel, Stepped, N_QUANTITIES,
 };
-use crate::fmi2::{
-    Causality, Initial, Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError,
-    VarType, Variability,
-};
-use crate::fmus::common::{
-    check_range, check_unit_interval, input, parameter, real, substep_tolerance_type, units,
-    SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE,
+use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError, VarType, Variability};
+use crate::fmus::common::{check_range, check_unit_interval, units, SUBSTEP_RTOL};
+use crate::fmus::table::{
+    self, integer, model_access, output, parameter, real, variables, Check, Row, STATIC_LAW,
 };
 use crate::law::activation::Decay;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::uniaxial::evaluable_stretch_range;
-use crate::law::{ParamId, Params, PARAMETERS};
-use crate::scene::{Scene, Value};
+use crate::law::{ParamId, Params};
+use crate::scene::Scene;
 use std::marker::PhantomData;
-
-mod state;
 
 /// Default rest length: the paper's specimen.
 pub const DEFAULT_L0: f64 = crate::specimen::LENGTH;
@@ -67,138 +63,197 @@ const GRADING_RANGE: Range = Range {
     max: crate::fe::mesh::MAX_GRADING,
 };
 
-/// A variable of `HillMuscleFE`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Var {
-    Param(ParamId),
-    L0,
-    Area,
-    ActivationDynamics,
-    InitialActivation,
-    AdaptiveSubsteps,
-    SubstepTolerance,
-    NAxial,
-    NRadial,
-    AxialGrading,
-    RadialGrading,
-    FibreLayout,
-    Activation,
-    Length,
-    Out(Output),
-    NewtonIterations,
-}
-
-/// The Real outputs, in table order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Output {
-    Force,
-    Stress,
-    CauchyStress,
-    ActivationLevel,
-    FibreStretch,
-    CeStretch,
-    SeeStretch,
-    ActiveStress,
-    PassiveStress,
-    VolumeRatioMin,
-    VolumeRatioMax,
-    MaxFibreStretch,
-}
-
-const OUTPUTS: [(Output, &str, &str, &str); N_QUANTITIES] = [
-    (
-        Output::Force,
-        "force",
-        "Axial reaction force on the moved end face, tension positive",
-        "N",
-    ),
-    (
-        Output::Stress,
-        "stress",
-        "Engineering (nominal) stress: force / area",
-        "Pa",
-    ),
-    (
-        Output::CauchyStress,
-        "cauchy_stress",
-        "Mean axial Cauchy stress: force * length / current volume",
-        "Pa",
-    ),
-    (
-        Output::ActivationLevel,
-        "activation_level",
-        "Activation level a",
-        "1",
-    ),
-    (
-        Output::FibreStretch,
-        "fibre_stretch",
-        "Volume average of the modified fibre stretch",
-        "1",
-    ),
-    (
-        Output::CeStretch,
-        "ce_stretch",
-        "Volume average of the contractile element stretch lambda_m",
-        "1",
-    ),
-    (
-        Output::SeeStretch,
-        "see_stretch",
-        "Volume average of the series elastic element stretch lambda_s",
-        "1",
-    ),
-    (
-        Output::ActiveStress,
-        "active_stress",
-        "Volume average of the SEE (= CE) stress sigma_s",
-        "Pa",
-    ),
-    (
-        Output::PassiveStress,
-        "passive_stress",
-        "stress - active_stress",
-        "Pa",
-    ),
-    (
-        Output::VolumeRatioMin,
-        "volume_ratio_min",
-        "Smallest element volume ratio (mean of its nodal J, the ratio the volume constraint acts on)",
-        "1",
-    ),
-    (
-        Output::VolumeRatioMax,
-        "volume_ratio_max",
-        "Largest element volume ratio (mean of its nodal J, the ratio the volume constraint acts on)",
-        "1",
-    ),
-    (
-        Output::MaxFibreStretch,
-        "max_fibre_stretch",
-        "Largest element modified fibre stretch",
-        "1",
-    ),
-];
-impl Output {
-    /// The FE muscle's quantity this output reads.
-    fn quantity(self) -> Quantity {
-        match self {
-            Output::Force => Quantity::Force,
-            Output::Stress => Quantity::Stress,
-            Output::CauchyStress => Quantity::CauchyStress,
-            Output::ActivationLevel => Quantity::ActivationLevel,
-            Output::FibreStretch => Quantity::FibreStretch,
-            Output::CeStretch => Quantity::CeStretch,
-            Output::SeeStretch => Quantity::SeeStretch,
-            Output::ActiveStress => Quantity::ActiveStress,
-            Output::PassiveStress => Quantity::PassiveStress,
-            Output::VolumeRatioMin => Quantity::VolumeRatioMin,
-            Output::VolumeRatioMax => Quantity::VolumeRatioMax,
-            Output::MaxFibreStretch => Quantity::MaxFibreStretch,
-        }
+variables! {
+    /// A variable of `HillMuscleFE`, in table order: the law's parameters,
+    /// geometry, activation, substep and mesh options, the inputs, the
+    /// outputs.
+    pub enum Var;
+    impl[S: Scene] HillFEModel<S> as (m, v) {
+        /// A parameter of the law (MODEL_NOTES "Parameters").
+        Param(id: ParamId) = table::law_parameters()
+            => Real(get m.params.get(id), set m.params.set(id, v).map_err(|e| ModelError(e.to_string()))?);
+        L0 = table::l0(
+            "Rest length of the muscle (the fusiform specimen is scaled to it)",
+            DEFAULT_L0,
+        ) => Real(m.l0);
+        Area = table::area(
+            "Mean cross-section V0/L0 of the fusiform muscle (radii scaled to it); stress = force / area",
+            DEFAULT_AREA,
+        ) => Real(m.area);
+        ActivationDynamics = table::activation_dynamics() => Boolean(m.activation_dynamics);
+        InitialActivation = table::initial_activation() => Real(m.initial_activation);
+        AdaptiveSubsteps = table::adaptive_substeps(
+            "Cut a step into pieces where the error estimate of the CE-SEE update exceeds substep_tolerance (each piece a full equilibrium solve); false: one backward-Euler step per communication step (first order in h)",
+            false,
+        ) => Boolean(m.adaptive_substeps);
+        SubstepTolerance = table::substep_tolerance(
+            "Tolerance of the estimated local error of the SEE stress per piece (largest over the elements), as a fraction of sigma0",
+        ) => Real(m.substep_tolerance);
+        NAxial = parameter(
+            "n_axial",
+            "Mesh: element layers along the axis",
+            integer(DEFAULT_MESH.n_axial as i32, N_AXIAL_RANGE),
+            Check::Closed,
+        ) => Integer(m.n_axial);
+        NRadial = parameter(
+            "n_radial",
+            "Mesh: rings in the cross-section",
+            integer(DEFAULT_MESH.n_radial as i32, N_RADIAL_RANGE),
+            Check::Closed,
+        ) => Integer(m.n_radial);
+        AxialGrading = parameter(
+            "axial_grading",
+            "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
+            real("1", Some(DEFAULT_GRADING.axial), Some(GRADING_RANGE)),
+            Check::Finite,
+        ) => Real(m.grading.axial);
+        RadialGrading = parameter(
+            "radial_grading",
+            "Mesh: rings of the cross-section graded toward the lateral surface, radius u + g u (1 - u) of the section's radius, u = i / n_radial; outer ring about (1 - g) times the uniform width",
+            real("1", Some(DEFAULT_GRADING.radial), Some(GRADING_RANGE)),
+            Check::Finite,
+        ) => Real(m.grading.radial);
+        FibreLayout = parameter(
+            "fibre_layout",
+            "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
+            integer(0, (0, 1)),
+            Check::Closed,
+        ) => Integer(m.fibre_layout);
+        Activation = table::activation() => Real(m.command), der m.command_rate;
+        Length = table::length(DEFAULT_L0)
+            => Real(get m.length(), set m.length = Some(v)), der m.length_rate;
+        /// An output ([`OUTPUTS`]).
+        Out(o: Output) = OUTPUTS => Real(get m.outputs[o as usize]);
+        NewtonIterations = Row {
+            variability: Variability::Discrete,
+            ty: VarType::Integer {
+                start: None,
+                min: None,
+                max: None,
+            },
+            ..output(
+                "newton_iterations",
+                "Newton iterations of the last step (all substeps, including the predictor), after initialization of the whole initialization",
+                "1",
+                state_deps,
+            )
+        } => Integer(get m.newton_iterations);
     }
 }
 
+// Dependencies at initialization: the activation level on the activation
+// options (and, through the substeps, their control), everything else also
+// on the length, the geometry, the mesh and the static law. Outputs have no
+// direct feedthrough (`ModelInfo::direct_feedthrough`).
+
+/// What the activation level depends on.
+fn activation_deps() -> Vec<Var> {
+    vec![
+        Var::Activation,
+        Var::ActivationDynamics,
+        Var::InitialActivation,
+        Var::AdaptiveSubsteps,
+        Var::SubstepTolerance,
+    ]
+}
+
+/// What every other output depends on.
+fn state_deps() -> Vec<Var> {
+    let mut deps = activation_deps();
+    deps.extend([
+        Var::Length,
+        Var::L0,
+        Var::Area,
+        Var::NAxial,
+        Var::NRadial,
+        Var::AxialGrading,
+        Var::RadialGrading,
+        Var::FibreLayout,
+    ]);
+    deps.extend(STATIC_LAW.map(Var::Param));
+    deps
+}
+
+/// The Real outputs: the FE muscle's quantities, in table order.
+pub use crate::fe::step_map::Quantity as Output;
+
+mod state;
+
+/// The outputs' rows, in [`Output`] order.
+const OUTPUTS: [(Output, Row<Var>); N_QUANTITIES] = [
+    (
+        Output::Force,
+        table::force(
+            "Axial reaction force on the moved end face, tension positive",
+            state_deps,
+        ),
+    ),
+    (Output::Stress, table::stress(state_deps)),
+    (
+        Output::CauchyStress,
+        table::cauchy_stress(
+            "Mean axial Cauchy stress: force * length / current volume",
+            state_deps,
+        ),
+    ),
+    (
+        Output::ActivationLevel,
+        table::activation_level(activation_deps),
+    ),
+    (
+        Output::FibreStretch,
+        table::fibre_stretch("Volume average of the modified fibre stretch", state_deps),
+    ),
+    (
+        Output::CeStretch,
+        table::ce_stretch(
+            "Volume average of the contractile element stretch lambda_m",
+            state_deps,
+        ),
+    ),
+    (
+        Output::SeeStretch,
+        table::see_stretch(
+            "Volume average of the series elastic element stretch lambda_s",
+            state_deps,
+        ),
+    ),
+    (
+        Output::ActiveStress,
+        table::active_stress("Volume average of the SEE (= CE) stress sigma_s", state_deps),
+    ),
+    (
+        Output::PassiveStress,
+        table::passive_stress("stress - active_stress", state_deps),
+    ),
+    (
+        Output::VolumeRatioMin,
+        output(
+            "volume_ratio_min",
+            "Smallest element volume ratio (mean of its nodal J, the ratio the volume constraint acts on)",
+            "1",
+            state_deps,
+        ),
+    ),
+    (
+        Output::VolumeRatioMax,
+        output(
+            "volume_ratio_max",
+            "Largest element volume ratio (mean of its nodal J, the ratio the volume constraint acts on)",
+            "1",
+            state_deps,
+        ),
+    ),
+    (
+        Output::MaxFibreStretch,
+        output(
+            "max_fibre_stretch",
+            "Largest element modified fibre stretch",
+            "1",
+            state_deps,
+        ),
+    ),
+];
 /// Both gradings in their declared range, the message naming the parameter.
 fn check_grading(g: Grading) -> Result<(), ModelError> {
     check_range("axial_grading", g.axial, GRADING_RANGE)?;
@@ -237,7 +292,7 @@ pub struct HillFEModel<S: Scene> {
     /// The committed muscle (`None` before the first initialization).
     state: Option<Committed>,
     decay: Option<Decay>,
-    /// In [`Quantity`] order.
+    /// In [`Output`] order.
     outputs: Outputs,
     newton_iterations: i32,
 }
@@ -357,156 +412,14 @@ impl<S: Scene> Model for HillFEModel<S> {
         // resolved; the setters check them again).
         let all = all_variables();
         crate::scene::apply_settings(&S::SPEC, &all, |var, value| {
-            match value {
-                Value::Real(x) => m.set_real(var, x),
-                Value::Integer(i) => m.set_integer(var, i),
-                Value::Boolean(b) => m.set_boolean(var, b),
-            }
-            .map(|_| ())
-            .map_err(|e| e.0)
+            m.table_set(var, value).map(|_| ()).map_err(|e| e.0)
         })
         .expect("the scene's settings are valid");
         m.initialize().expect("the scene's start values are valid");
         m
     }
 
-    fn get_real(&self, var: Var) -> f64 {
-        match var {
-            Var::Param(id) => self.params.get(id),
-            Var::L0 => self.l0,
-            Var::Area => self.area,
-            Var::InitialActivation => self.initial_activation,
-            Var::SubstepTolerance => self.substep_tolerance,
-            Var::AxialGrading => self.grading.axial,
-            Var::RadialGrading => self.grading.radial,
-            Var::Activation => self.command,
-            Var::Length => self.length(),
-            Var::Out(o) => self.outputs[o.quantity() as usize],
-            _ => f64::NAN,
-        }
-    }
-
-    fn get_integer(&self, var: Var) -> i32 {
-        match var {
-            Var::NAxial => self.n_axial,
-            Var::NRadial => self.n_radial,
-            Var::FibreLayout => self.fibre_layout,
-            Var::NewtonIterations => self.newton_iterations,
-            _ => 0,
-        }
-    }
-
-    fn get_boolean(&self, var: Var) -> bool {
-        match var {
-            Var::ActivationDynamics => self.activation_dynamics,
-            Var::AdaptiveSubsteps => self.adaptive_substeps,
-            _ => false,
-        }
-    }
-
-    fn set_real(&mut self, var: Var, value: f64) -> Result<SetOutcome, ModelError> {
-        match var {
-            Var::Param(id) => self
-                .params
-                .set(id, value)
-                .map_err(|e| ModelError(e.to_string()))?,
-            Var::L0 => {
-                check_range("L0", value, L0_RANGE)?;
-                self.l0 = value;
-            }
-            Var::Area => {
-                check_range("area", value, AREA_RANGE)?;
-                self.area = value;
-            }
-            Var::InitialActivation => {
-                check_unit_interval("initial_activation", value)?;
-                self.initial_activation = value;
-            }
-            Var::AxialGrading => {
-                check_range("axial_grading", value, GRADING_RANGE)?;
-                self.grading.axial = value;
-            }
-            Var::RadialGrading => {
-                check_range("radial_grading", value, GRADING_RANGE)?;
-                self.grading.radial = value;
-            }
-            Var::SubstepTolerance => {
-                check_range("substep_tolerance", value, SUBSTEP_TOLERANCE_RANGE)?;
-                self.substep_tolerance = value;
-            }
-            Var::Length => {
-                check_range("length", value, LENGTH_RANGE)?;
-                self.length = Some(value);
-            }
-            Var::Activation => {
-                if value.is_nan() {
-                    return Err(ModelError(format!(
-                        "activation = {value} is out of range: must be in [0, 1]"
-                    )));
-                }
-                let clamped = value.clamp(0.0, 1.0);
-                self.command = clamped;
-                if clamped != value {
-                    return Ok(SetOutcome::Warning {
-                        message: format!("activation = {value} is outside [0, 1]; clamped to {clamped} (logged once per instance)"),
-                        log_once: true,
-                    });
-                }
-            }
-            _ => return Err(ModelError("not a Real input or parameter".into())),
-        }
-        Ok(SetOutcome::Ok)
-    }
-
-    fn set_integer(&mut self, var: Var, value: i32) -> Result<SetOutcome, ModelError> {
-        let (name, range, slot) = match var {
-            Var::NAxial => ("n_axial", N_AXIAL_RANGE, &mut self.n_axial),
-            Var::NRadial => ("n_radial", N_RADIAL_RANGE, &mut self.n_radial),
-            Var::FibreLayout => ("fibre_layout", (0, 1), &mut self.fibre_layout),
-            _ => return Err(ModelError("not an Integer parameter".into())),
-        };
-        if !(range.0..=range.1).contains(&value) {
-            return Err(ModelError(format!(
-                "{name} = {value} is out of range: must be in [{}, {}]",
-                range.0, range.1
-            )));
-        }
-        *slot = value;
-        Ok(SetOutcome::Ok)
-    }
-
-    fn set_boolean(&mut self, var: Var, value: bool) -> Result<SetOutcome, ModelError> {
-        match var {
-            Var::ActivationDynamics => {
-                self.activation_dynamics = value;
-                Ok(SetOutcome::Ok)
-            }
-            Var::AdaptiveSubsteps => {
-                self.adaptive_substeps = value;
-                Ok(SetOutcome::Ok)
-            }
-            _ => Err(ModelError("not a Boolean parameter".into())),
-        }
-    }
-
-    fn set_real_input_derivative(
-        &mut self,
-        var: Var,
-        _order: i32,
-        value: f64,
-    ) -> Result<(), ModelError> {
-        if !value.is_finite() {
-            return Err(ModelError(format!(
-                "input derivative {value} must be finite"
-            )));
-        }
-        match var {
-            Var::Activation => self.command_rate = value,
-            Var::Length => self.length_rate = value,
-            _ => return Err(ModelError("not a Real input".into())),
-        }
-        Ok(())
-    }
+    model_access!();
 
     /// Isometric equilibrium at the initial length and `initial_activation`
     /// (with `activation_dynamics = false`: at the command).
@@ -591,7 +504,7 @@ impl<S: Scene> Model for HillFEModel<S> {
                     .committed()?
                     .output_jacobian(p, l0, area)
                     .map_err(ModelError)?;
-                Ok(jacobian[o.quantity() as usize][usize::from(!by_length)])
+                Ok(jacobian[o as usize][usize::from(!by_length)])
             }
             _ => Err(ModelError(
                 "directional derivatives are provided for the outputs".into(),
@@ -642,209 +555,13 @@ pub fn info_for(spec: &crate::scene::SceneSpec) -> ModelInfo {
     }
 }
 
-/// Every variable the FE model can expose, in table order (the full
-/// `HillMuscleFE` exposes all of them; a scene a subset,
-/// [`crate::scene::SceneSpec::variables`]).
-pub fn all_variables() -> Vec<ScalarVariable<Var>> {
-    let mut v: Vec<ScalarVariable<Var>> = PARAMETERS
-        .iter()
-        .map(|info| {
-            parameter(
-                info.name,
-                info.description,
-                real(
-                    info.unit,
-                    Some(info.default),
-                    Some(info.range.min),
-                    Some(info.range.max),
-                ),
-                Var::Param(info.id),
-            )
-        })
-        .collect();
-    v.push(parameter(
-        "L0",
-        "Rest length of the muscle (the fusiform specimen is scaled to it)",
-        real(
-            "m",
-            Some(DEFAULT_L0),
-            Some(L0_RANGE.min),
-            Some(L0_RANGE.max),
-        ),
-        Var::L0,
-    ));
-    v.push(parameter(
-        "area",
-        "Mean cross-section V0/L0 of the fusiform muscle (radii scaled to it); stress = force / area",
-        real("m2", Some(DEFAULT_AREA), Some(AREA_RANGE.min), Some(AREA_RANGE.max)),
-        Var::Area,
-    ));
-    v.push(parameter(
-        "activation_dynamics",
-        "Use first-order activation dynamics da/dt = S (u - a); false: a = u",
-        VarType::Boolean { start: Some(true) },
-        Var::ActivationDynamics,
-    ));
-    v.push(parameter(
-        "initial_activation",
-        "Activation level at the start time",
-        real("1", Some(0.0), Some(0.0), Some(1.0)),
-        Var::InitialActivation,
-    ));
-    v.push(parameter(
-        "adaptive_substeps",
-        "Cut a step into pieces where the error estimate of the CE-SEE update exceeds substep_tolerance (each piece a full equilibrium solve); false: one backward-Euler step per communication step (first order in h)",
-        VarType::Boolean { start: Some(false) },
-        Var::AdaptiveSubsteps,
-    ));
-    v.push(parameter(
-        "substep_tolerance",
-        "Tolerance of the estimated local error of the SEE stress per piece (largest over the elements), as a fraction of sigma0",
-        substep_tolerance_type(),
-        Var::SubstepTolerance,
-    ));
-    let integer = |start, (min, max)| VarType::Integer {
-        start: Some(start),
-        min: Some(min),
-        max: Some(max),
-    };
-    v.push(parameter(
-        "n_axial",
-        "Mesh: element layers along the axis",
-        integer(DEFAULT_MESH.n_axial as i32, N_AXIAL_RANGE),
-        Var::NAxial,
-    ));
-    v.push(parameter(
-        "n_radial",
-        "Mesh: rings in the cross-section",
-        integer(DEFAULT_MESH.n_radial as i32, N_RADIAL_RANGE),
-        Var::NRadial,
-    ));
-    v.push(parameter(
-        "axial_grading",
-        "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
-        real(
-            "1",
-            Some(DEFAULT_GRADING.axial),
-            Some(GRADING_RANGE.min),
-            Some(GRADING_RANGE.max),
-        ),
-        Var::AxialGrading,
-    ));
-    v.push(parameter(
-        "radial_grading",
-        "Mesh: rings of the cross-section graded toward the lateral surface, radius u + g u (1 - u) of the section's radius, u = i / n_radial; outer ring about (1 - g) times the uniform width",
-        real(
-            "1",
-            Some(DEFAULT_GRADING.radial),
-            Some(GRADING_RANGE.min),
-            Some(GRADING_RANGE.max),
-        ),
-        Var::RadialGrading,
-    ));
-    v.push(parameter(
-        "fibre_layout",
-        "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
-        integer(0, (0, 1)),
-        Var::FibreLayout,
-    ));
-    v.push(input(
-        "activation",
-        "Activation command u in [0, 1] (values outside are clamped with a warning)",
-        real("1", Some(0.0), Some(0.0), Some(1.0)),
-        Var::Activation,
-    ));
-    v.push(input(
-        "length",
-        "Muscle length reached at the end of the step",
-        real(
-            "m",
-            Some(DEFAULT_L0),
-            Some(LENGTH_RANGE.min),
-            Some(LENGTH_RANGE.max),
-        ),
-        Var::Length,
-    ));
-    let activation_deps = [
-        "activation",
-        "activation_dynamics",
-        "initial_activation",
-        "adaptive_substeps",
-        "substep_tolerance",
-    ];
-    let mut state_deps: Vec<&'static str> = activation_deps.to_vec();
-    state_deps.extend([
-        "length",
-        "L0",
-        "area",
-        "n_axial",
-        "n_radial",
-        "axial_grading",
-        "radial_grading",
-        "fibre_layout",
-    ]);
-    state_deps.extend(
-        [
-            ParamId::B,
-            ParamId::C,
-            ParamId::Alpha,
-            ParamId::Beta,
-            ParamId::A,
-            ParamId::Sigma0,
-            ParamId::LambdaOpt,
-            ParamId::Dcomp,
-            ParamId::K,
-        ]
-        .map(|id| Params::info(id).name),
-    );
-    let output = |name, description, ty, depends_on, id| ScalarVariable {
-        name,
-        description,
-        causality: Causality::Output,
-        variability: Variability::Continuous,
-        initial: Some(Initial::Calculated),
-        ty,
-        depends_on,
-        id,
-    };
-    for (out, name, description, unit) in OUTPUTS {
-        let deps = if out == Output::ActivationLevel {
-            activation_deps.to_vec()
-        } else {
-            state_deps.clone()
-        };
-        v.push(output(
-            name,
-            description,
-            real(unit, None, None, None),
-            deps,
-            Var::Out(out),
-        ));
-    }
-    v.push(ScalarVariable {
-        variability: Variability::Discrete,
-        ..output(
-            "newton_iterations",
-            "Newton iterations of the last step (all substeps, including the predictor), after initialization of the whole initialization",
-            VarType::Integer {
-                start: None,
-                min: None,
-                max: None,
-            },
-            state_deps.clone(),
-            Var::NewtonIterations,
-        )
-    });
-    v
-}
-
 /// The model, for the FMU's `documentation/index.html`.
 pub const FE_HTML: &str = include_str!("doc/hillfe.html");
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fe::step_map::{outputs, Substepped};
+    use crate::fe::step_map::{outputs, Quantity, Substepped};
     use crate::fmus::common::{assert_restore_refuses, restored};
 
     /// The last step's map when it took substeps.
@@ -857,7 +574,7 @@ mod tests {
     #[test]
     fn the_output_table_is_in_the_order_of_the_fe_quantities() {
         for (i, &(o, ..)) in OUTPUTS.iter().enumerate() {
-            assert_eq!(o.quantity() as usize, i, "{o:?}");
+            assert_eq!(o as usize, i, "{o:?}");
         }
     }
 
@@ -1186,10 +903,10 @@ mod tests {
             assert_eq!(substepped(&m).is_some(), adaptive);
             let richardson = |d: &dyn Fn(f64) -> f64, e: f64| (4.0 * d(e / 2.0) - d(e)) / 3.0;
             let pieces = substepped(&m).map(|s| s.pieces.clone());
-            for &(o, name, _, _) in OUTPUTS.iter() {
+            for &(o, Row { name, .. }) in OUTPUTS.iter() {
                 let out = |l, u| match &pieces {
                     None => run(&before, l, u, h, 1).get_real(Var::Out(o)),
-                    Some(pieces) => map_outputs(&before, pieces, l, u, h)[o.quantity() as usize],
+                    Some(pieces) => map_outputs(&before, pieces, l, u, h)[o as usize],
                 };
                 let d = |known| m.partial_derivative(Var::Out(o), known).unwrap();
                 let (d_l, d_u) = (d(Var::Length), d(Var::Activation));

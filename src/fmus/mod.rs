@@ -4,3 +4,4 @@ pub mod common;
 pub mod hill1d;
 #[cfg(feature = "fe")]
 pub mod hillfe;
+pub mod table;

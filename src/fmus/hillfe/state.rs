@@ -684,7 +684,7 @@ mod tests {
     fn stored_outputs_must_be_those_of_the_restored_muscle() {
         let m = stepped();
         restored(&m).expect("an unmodified state");
-        let set = |o: Output, v: f64| move |f: &mut HillFE| f.outputs[o.quantity() as usize] = v;
+        let set = |o: Output, v: f64| move |f: &mut HillFE| f.outputs[o as usize] = v;
         assert_restore_refuses(
             &m,
             set(Output::ActivationLevel, 5.0),
@@ -700,7 +700,7 @@ mod tests {
         assert_restore_refuses(
             &m,
             |f| {
-                let q = |o: Output| o.quantity() as usize;
+                let q = |o: Output| o as usize;
                 let force = 1e30;
                 f.outputs[q(Output::Force)] = force;
                 f.outputs[q(Output::Stress)] = force / f.area;
