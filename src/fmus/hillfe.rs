@@ -370,21 +370,11 @@ impl<S: Scene> HillFEModel<S> {
     }
 }
 
-impl<S: Scene> Model for HillFEModel<S> {
-    type Var = Var;
-
-    fn info() -> ModelInfo {
-        info_for(&S::SPEC)
-    }
-
-    /// The scene's variables: [`all_variables`] restricted to what the scene
-    /// exposes ([`crate::scene::SceneSpec::variables`]).
-    fn variables() -> Vec<ScalarVariable<Var>> {
-        S::SPEC.variables(all_variables())
-    }
-
-    fn new() -> Self {
-        let mut m = HillFEModel {
+impl<S: Scene> HillFEModel<S> {
+    /// Every field at its default, before the scene's settings ([`Model::new`])
+    /// or a restored state's values (`state::decode`) are applied.
+    fn blank() -> Self {
+        HillFEModel {
             scene: PhantomData,
             params: Params::default(),
             l0: DEFAULT_L0,
@@ -407,7 +397,25 @@ impl<S: Scene> Model for HillFEModel<S> {
             decay: None,
             outputs: [0.0; N_QUANTITIES],
             newton_iterations: 0,
-        };
+        }
+    }
+}
+
+impl<S: Scene> Model for HillFEModel<S> {
+    type Var = Var;
+
+    fn info() -> ModelInfo {
+        info_for(&S::SPEC)
+    }
+
+    /// The scene's variables: [`all_variables`] restricted to what the scene
+    /// exposes ([`crate::scene::SceneSpec::variables`]).
+    fn variables() -> Vec<ScalarVariable<Var>> {
+        S::SPEC.variables(all_variables())
+    }
+
+    fn new() -> Self {
+        let mut m = Self::blank();
         // The scene's start values and constants (checked when the scene was
         // resolved; the setters check them again).
         let all = all_variables();

@@ -7,10 +7,7 @@
 
 use std::sync::Arc;
 
-use super::{
-    all_variables, check_grading, HillFEModel, Var, DEFAULT_AREA, DEFAULT_GRADING, DEFAULT_L0,
-    DEFAULT_MESH, N_AXIAL_RANGE, N_RADIAL_RANGE,
-};
+use super::{all_variables, check_grading, HillFEModel, Var, N_AXIAL_RANGE, N_RADIAL_RANGE};
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::muscle::{Muscle, MAX_SUBSTEPS};
 use crate::fe::newton::RESIDUAL_TOLERANCE;
@@ -26,14 +23,13 @@ use crate::fmus::codec::{
     check_output, check_scene_constants, decode_from, encode_onto, wire_struct, MaybeF64,
 };
 use crate::fmus::common::{
-    check_range, check_restored_drive, check_restored_history, check_unit_interval, SUBSTEP_RTOL,
+    check_range, check_restored_drive, check_restored_history, check_unit_interval,
 };
 use crate::law::activation::Decay;
 use crate::law::params::{AREA_RANGE, L0_RANGE};
-use crate::law::{FibreHistory, FibreRate, Params, PARAMETERS};
+use crate::law::{FibreHistory, FibreRate, PARAMETERS};
 use crate::scene::Scene;
 use crate::step_control::MAX_CONTROLLED_TRIES;
-use std::marker::PhantomData;
 
 wire_struct! {
     /// The state's fields in byte order (the format tests/golden_state.rs
@@ -273,29 +269,7 @@ pub(super) fn decode<S: Scene>(input: &mut &[u8]) -> Result<HillFEModel<S>, Mode
 /// The model of a decoded state, if some call sequence reaches it.
 fn restore<S: Scene>(s: HillFEState) -> Result<HillFEModel<S>, String> {
     let err = |e: ModelError| e.0;
-    let mut m = HillFEModel::<S> {
-        scene: PhantomData,
-        params: Params::default(),
-        l0: DEFAULT_L0,
-        area: DEFAULT_AREA,
-        activation_dynamics: true,
-        initial_activation: 0.0,
-        adaptive_substeps: false,
-        substep_tolerance: SUBSTEP_RTOL,
-        n_axial: DEFAULT_MESH.n_axial as i32,
-        n_radial: DEFAULT_MESH.n_radial as i32,
-        grading: DEFAULT_GRADING,
-        fibre_layout: 0,
-        command: 0.0,
-        length: None,
-        command_rate: 0.0,
-        length_rate: 0.0,
-        activation_level: 0.0,
-        state: None,
-        decay: None,
-        outputs: [0.0; N_QUANTITIES],
-        newton_iterations: 0,
-    };
+    let mut m = HillFEModel::<S>::blank();
     if s.params.len() != PARAMETERS.len() {
         return Err(format!("{} parameters", s.params.len()));
     }
@@ -659,7 +633,7 @@ fn check_outputs<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(), Stri
 
 #[cfg(test)]
 mod tests {
-    use super::super::{HillFE, Output};
+    use super::super::{HillFE, Output, DEFAULT_L0};
     use super::*;
     use crate::fmi2::bytes::ByteWriter;
     use crate::fmus::common::{assert_restore_refuses, restored};
