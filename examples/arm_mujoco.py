@@ -104,7 +104,7 @@ on top of an experiment. Measured results: docs/coupling.md.
 
 The FE muscle (``--model fe``)
 ------------------------------
-``--model fe`` runs ``dist/HillMuscleFE.fmu`` (issue 3: the paper's fusiform
+``--model fe`` runs ``dist/HillMuscleFE.fmu`` (the paper's fusiform
 specimen meshed with tetrahedra, quasi-static FE per step, same inputs and
 outputs as HillMuscle1D, Integer mesh parameters set with ``--mesh
 NAME=VALUE``; its ``L0`` and ``area`` parameters scale the specimen to the
@@ -788,8 +788,8 @@ def resolve_model(model, fmu=None, out=sys.stderr):
             raise FileNotFoundError(f"{fmu} not found (build the FMUs with scripts/build_fmus.sh)")
         return model, Path(fmu)
     if model == "fe" and not FE_FMU.is_file():
-        print(f"--model fe: {FE_FMU} not found (the FE muscle FMU of issue 3; build it with "
-              f"scripts/build_fmus.sh once it exists). Falling back to HillMuscle1D ({DEFAULT_FMU}) "
+        print(f"--model fe: {FE_FMU} not found (the FE muscle FMU; build it with "
+              f"scripts/build_fmus.sh). Falling back to HillMuscle1D ({DEFAULT_FMU}) "
               f"at the same communication step.", file=out)
         return "1d", DEFAULT_FMU
     return model, (FE_FMU if model == "fe" else DEFAULT_FMU)

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Per-multibody-step cost: the MuJoCo elbow with HillMuscle1D in the loop vs
-MuJoCo's own built-in muscle on the same arm (issue 7, Performance).
+MuJoCo's own built-in muscle on the same arm.
 
 The arm is ``examples/arm_mujoco.py``'s (``ARM_XML``: planar elbow, forearm +
 hand load, the flexor as a wrapping spatial tendon; MuJoCo step 1 ms, Euler).

@@ -1,4 +1,4 @@
-//! Passive stress at 20 % strain per mesh (issue 3, verification item 2):
+//! Passive stress at 20 % strain per mesh:
 //! `cargo run --release --example fe_locking [-- [--plain] [--grading β] [--radial-grading g] n_axial:n_radial ...]`.
 //!
 //! `--grading β`: slices graded toward the clamped faces

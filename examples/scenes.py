@@ -4,7 +4,7 @@ A ``Scene`` gives, vectorised over numpy arrays of times, the muscle length
 L(t) [m], the activation command u(t), and their right derivatives (the slope
 on [t, t + dt) for small dt: what a master knows at a communication point,
 used as the FMU's input derivatives). The three scenes of the
-work-precision study (MODEL_NOTES "Experiments"; issue 5):
+work-precision study (MODEL_NOTES "Experiments"):
 
 * ``passive``: u = 0, L = L0 + 5 mm/s t, to 20 % strain at t = 2 s;
 * ``activated``: u = 1 from t = 0, held at L0 until t = 0.5 s, then pulled at

@@ -24,8 +24,8 @@
 //! Newton iterate, compressive instability), the symmetric indefinite
 //! factorisation LBLᵀ on the same ordering: Bunch–Kaufman pivoting (1 × 1 and
 //! 2 × 2 pivots) within the supernodes, which keeps the symmetric structure
-//! and on the default mesh costs 1.1–1.2 times a Cholesky factorisation
-//! where sparse LU costs 4–5 times (BENCHMARKS.md, `cargo bench --bench
+//! and costs about as much as a Cholesky factorisation, far less than
+//! sparse LU (the ratios are in BENCHMARKS.md, `cargo bench --bench
 //! fe_init`).
 //! Pivoting confined to a supernode is not guaranteed stable, so an LBLᵀ
 //! factorisation is accepted only when it solves a probe system to a

@@ -59,22 +59,11 @@
 //!
 //! [`LEVELS`] keeps n_axial = 6 n_radial, so that every level has the same
 //! element shapes. At 4:1 the prisms near the thin end faces are about 3× as
-//! long as wide (min dihedral 14°–16°, radius ratio 0.35–0.41); around 6:1–8:1
-//! is best for this profile. Measured (radius ratio 3 r_in / R_circ, 1 for the
-//! regular tetrahedron; dihedral angles in degrees; volume error relative to
-//! V0 for the [`Section::Inscribed`] / [`Section::EqualArea`] cross-sections;
-//! the qualities of the two sections differ by under 0.01 and 0.3°):
+//! long as wide; around 6:1–8:1 is best for this profile (the radius ratios,
+//! dihedral angles and volume errors of each level are in docs/fe.md; the
+//! tests bound them).
 //!
-//! | level | n_axial | n_radial | nodes  | tets   | radius ratio min / max | dihedral min / max | V error inscr. | V error eq.-area |
-//! |-------|---------|----------|--------|--------|------------------------|--------------------|----------------|------------------|
-//! | 0     | 12      | 2        | 247    | 864    | 0.508 / 0.881          | 23.5 / 130.1       | −4.94e-2       | −4.51e-3         |
-//! | 1     | 18      | 3        | 703    | 2,916  | 0.483 / 0.867          | 22.6 / 132.6       | −2.21e-2       | −2.01e-3         |
-//! | 2     | 24      | 4        | 1,525  | 6,912  | 0.469 / 0.896          | 21.5 / 133.7       | −1.25e-2       | −1.13e-3         |
-//! | 3     | 36      | 6        | 4,699  | 23,328 | 0.453 / 0.896          | 20.6 / 134.9       | −5.57e-3       | −5.02e-4         |
-//! | 4     | 48      | 8        | 10,633 | 55,296 | 0.446 / 0.896          | 20.3 / 135.5       | −3.13e-3       | −2.82e-4         |
-//!
-//! Any other resolution can be built; e.g. 8 × 2 gives 576 tetrahedra (radius
-//! ratio ≥ 0.41, dihedral ≥ 16.5°).
+//! Any other resolution can be built.
 //!
 //! [`LUMPED`] (16 × 3, 2,592 tetrahedra, slices graded 0.9 toward the end
 //! faces by [`graded_slice`], rings graded 0.6 toward the lateral surface by

@@ -9,10 +9,9 @@ use crate::law::Uniaxial;
 /// sensitivities of the last solve and ẋ_h is the history-driven rate of the
 /// last step (its change not explained by Δλ and Δa, per unit time),
 /// extrapolated linearly from the step before. A smooth input is predicted to
-/// O(h³) and a jump in λ or a to first order. Measured on the benchmark's
-/// stretch-and-release: 1.000 lateral evaluations and 1.15 CE–SEE iterations
-/// per step (2.16 with the rate held constant). Only the solvers' starting
-/// points depend on it, not the converged result.
+/// O(h³) and a jump in λ or a to first order (the iterations it saves are in
+/// BENCHMARKS.md). Only the solvers' starting points depend on it, not the
+/// converged result.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Predictor {
     /// (dq/dλ, dq/da, history rate of q, the step before's)

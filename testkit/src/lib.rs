@@ -1,8 +1,9 @@
 //! Test and benchmark code shared by hill-muscle's integration tests, benches
 //! and examples: the C-ABI loader of a built FMU ([`cabi`]), the test logger
 //! ([`logger`]), finite differences ([`fd`]), the stability matrix
-//! ([`stability`]) and the property-based FMI API-abuse harness
-//! ([`api_abuse`]).
+//! ([`stability`]), the property-based FMI API-abuse harness
+//! ([`api_abuse`]) and the header of generated results pages
+//! ([`provenance`]).
 //!
 //! # Shape
 //!
@@ -17,4 +18,5 @@ pub mod api_abuse;
 pub mod cabi;
 pub mod fd;
 pub mod logger;
+pub mod provenance;
 pub mod stability;

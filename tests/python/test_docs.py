@@ -106,3 +106,24 @@ def test_readme_is_a_short_entry_point():
 def test_no_issue_numbers_in_user_facing_pages(page):
     hits = [m.group(0) for m in ISSUE.finditer(page.read_text())]
     assert not hits, f"{page.relative_to(REPO)}: {hits}"
+
+
+GENERATORS = ["examples/stability.rs", "examples/work_precision.py", "examples/paper_figures.py",
+              "examples/sweep_dask.py", "scripts/memory_check.py"]
+"""The scripts that write a results page under docs/."""
+
+
+@pytest.mark.parametrize("generator", GENERATORS)
+def test_every_generator_writes_the_results_header(generator):
+    text = (REPO / generator).read_text()
+    assert "provenance.header()" in text or "provenance::header()" in text, (
+        f"{generator} must open its page with the provenance header")
+    assert not ISSUE.search(text), f"{generator} names an issue number"
+
+
+def test_the_provenance_header_is_a_results_kind_line():
+    spec = importlib.util.spec_from_file_location("provenance", REPO / "scripts" / "provenance.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    header = module.header()
+    assert KIND.match(header) and "machine: " in header and "commit " in header, header

@@ -273,7 +273,7 @@ fn graded_slices_are_monotone_symmetric_and_thin_at_the_ends() {
 #[test]
 fn all_tets_positive_and_well_shaped() {
     // Quality bounds for every level, both sections; measured minima:
-    // radius ratio 0.44–0.51, dihedral angles 20.3°–135.5° (module docs).
+    // radius ratio 0.44–0.51, dihedral angles 20.3°–135.5° (docs/fe.md).
     const MIN_RADIUS_RATIO: f64 = 0.4;
     const MIN_DIHEDRAL_DEG: f64 = 18.0;
     const MAX_DIHEDRAL_DEG: f64 = 140.0;
