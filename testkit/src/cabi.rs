@@ -64,7 +64,9 @@ fn extract_binary(id: &str) -> PathBuf {
         .parent()
         .expect("testkit/ has a parent directory")
         .to_path_buf();
-    let fmu = root.join(format!("dist/{id}.fmu"));
+    // HM_DIST names another dist/ (an older build, for side-by-side runs).
+    let dist = std::env::var_os("HM_DIST").map_or(root.join("dist"), PathBuf::from);
+    let fmu = dist.join(format!("{id}.fmu"));
     let file = std::fs::File::open(&fmu)
         .unwrap_or_else(|e| panic!("{}: {e} (run scripts/build_fmus.sh first)", fmu.display()));
     let mut zip = zip::ZipArchive::new(file).expect("FMU is a zip archive");
@@ -78,7 +80,7 @@ fn extract_binary(id: &str) -> PathBuf {
     out
 }
 
-/// dlopen the binary of `dist/<id>.fmu`.
+/// dlopen the binary of `dist/<id>.fmu` (or `$HM_DIST/<id>.fmu`).
 pub fn load(id: &str) -> Api {
     let path = extract_binary(id);
     let c = CString::new(path.to_str().unwrap()).unwrap();

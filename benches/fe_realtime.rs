@@ -1,0 +1,235 @@
+//! The real-time workloads of `HillMuscleFE` through its C ABI:
+//! `cargo bench --bench fe_realtime [-- --runs N] [-- --only NAME]`.
+//!
+//! Each workload drives the binary of `dist/HillMuscleFE.fmu` (or
+//! `$HM_DIST/HillMuscleFE.fmu`, to run an older build beside this one) on its
+//! default mesh with fmi2SetReal (activation, length), fmi2DoStep and
+//! fmi2GetReal (force), and reports the wall time per step over the whole run
+//! — the mean (what a real-time budget spends), the median, the 90th
+//! percentile and the largest — with the linear solves per step
+//! (`newton_iterations`, read outside the timed calls) and the force at the
+//! end (what must not change when the work does):
+//!
+//! - `passive`: from rest, activation 0, pulled at 5 mm/s to 20 % strain
+//!   (MODEL_NOTES "Experiments"), h = 1 ms, 2,000 steps;
+//! - `stretch-release`: activation command 0, then 1 from t = 0.2 s; length
+//!   L0 → 1.1 L0 over the first second and back to L0 over the second,
+//!   h = 1 ms, 2,000 steps;
+//! - `init`: fmi2Instantiate to fmi2ExitInitializationMode with
+//!   `initial_activation` 1 and the activation command 1 (the static
+//!   equilibrium at level 1 at L0), per run;
+//! - `large-steps`: the two stepping workloads at h = 1, 10 and 100 ms: wall
+//!   time per simulated second (it should fall as h grows).
+//!
+//! A last table counts the work of the stepping workloads in-process (the
+//! FMU's step map on the same mesh, activation dynamics on, no substep
+//! control, as the FMU's defaults): linear solves, residual evaluations,
+//! tangent factorisations and substeps per step. The counts are
+//! deterministic; they say what the times are made of.
+//!
+//! `--runs N` (default 3) repeats each row and reports the median of the runs'
+//! figures; `--only NAME` runs one workload once (for `perf record`).
+
+use std::ffi::c_uint;
+use std::time::Instant;
+
+use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
+use hill_muscle::fe::muscle::Muscle;
+use hill_muscle::fe::step_map::{discretization, StepLevel};
+use hill_muscle::law::Params;
+use hill_muscle::specimen::MEAN_AREA;
+
+use hill_muscle::fmi2::model_description::guid;
+use hill_muscle::fmi2::Model;
+use hill_muscle::fmus::hillfe::HillFE;
+use hill_muscle::specimen::LENGTH as L0;
+
+use cabi::{load, median, Instance};
+use testkit::cabi;
+
+/// The passive pull's speed [m/s].
+const SPEED: f64 = 0.005;
+
+/// A workload's inputs (activation command, length) at time t.
+type Inputs = fn(f64) -> (f64, f64);
+
+fn passive(t: f64) -> (f64, f64) {
+    (0.0, L0 + SPEED * t)
+}
+
+fn stretch_release(t: f64) -> (f64, f64) {
+    let u = if t >= 0.2 { 1.0 } else { 0.0 };
+    let up = t.min(2.0 - t).clamp(0.0, 1.0);
+    (u, L0 * (1.0 + 0.1 * up))
+}
+
+fn vr_of(name: &str) -> c_uint {
+    HillFE::variables()
+        .iter()
+        .position(|v| v.name == name)
+        .unwrap_or_else(|| panic!("no variable {name}")) as c_uint
+}
+
+/// One run over `duration` seconds in steps of `h`: wall time per step [s],
+/// linear solves per step, the force at the end.
+fn run(api: &cabi::Api, inputs: Inputs, h: f64, duration: f64) -> (Vec<f64>, Vec<i32>, f64) {
+    let ins = [vr_of("activation"), vr_of("length")];
+    let outs = [vr_of("force")];
+    let solves_vr = vr_of("newton_iterations");
+    let instance = Instance::new(api, &guid::<HillFE>());
+    let steps = (duration / h).round() as usize;
+    let (mut times, mut solves) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
+    let mut force = [0.0];
+    for i in 0..steps {
+        let (u, l) = inputs((i + 1) as f64 * h);
+        let t = Instant::now();
+        instance.step(&ins, &[u, l], i as f64 * h, h, &outs, &mut force);
+        times.push(t.elapsed().as_secs_f64());
+        solves.push(instance.integer(solves_vr));
+    }
+    (times, solves, force[0])
+}
+
+/// mean, median, p90, max of per-step times [s], and mean solves per step.
+fn stats(times: &[f64], solves: &[i32]) -> [f64; 5] {
+    let n = times.len();
+    let mut t = times.to_vec();
+    t.sort_by(|a, b| a.total_cmp(b));
+    [
+        t.iter().sum::<f64>() / n as f64,
+        t[n / 2],
+        t[(9 * n) / 10],
+        t[n - 1],
+        solves.iter().map(|&s| f64::from(s)).sum::<f64>() / n as f64,
+    ]
+}
+
+/// Seconds from fmi2Instantiate to fmi2ExitInitializationMode at level 1.
+fn init(api: &cabi::Api) -> f64 {
+    let level_1 = [
+        (vr_of("initial_activation"), 1.0),
+        (vr_of("activation"), 1.0),
+    ];
+    let t = Instant::now();
+    let instance = Instance::with_parameters(api, &guid::<HillFE>(), &level_1);
+    let s = t.elapsed().as_secs_f64();
+    drop(instance);
+    s
+}
+
+/// Per step of one in-process run: linear solves, residual evaluations,
+/// factorisations, substeps (means), and the force at the end.
+fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64) {
+    let p = Params::default();
+    let d = discretization(
+        None,
+        L0,
+        MEAN_AREA,
+        LUMPED,
+        LUMPED_GRADING,
+        FibreLayout::Axial,
+    )
+    .expect("the default mesh");
+    let (mut m, _) = Muscle::isometric(d, &p, L0, 0.0).expect("rest");
+    let steps = (duration / h).round() as usize;
+    let (mut sum, mut a0, mut force) = ([0usize; 4], 0.0, f64::NAN);
+    for i in 0..steps {
+        let (u, l) = inputs((i + 1) as f64 * h);
+        let level = StepLevel::new(true, p.s, a0, u, 0.0, h, (-p.s * h).exp());
+        let adv = m
+            .advance(&p, l, h, &|tau| level.at(tau))
+            .expect("the workload's step");
+        sum[0] += adv.iterations;
+        sum[1] += adv.residuals;
+        sum[2] += adv.factorizations;
+        sum[3] += adv.substeps;
+        force = adv.muscle.disc.reaction(&adv.solution.evaluation.forces);
+        a0 = level.end;
+        m = adv.muscle;
+    }
+    (sum.map(|c| c as f64 / steps as f64), force)
+}
+
+const STEPPING: [(&str, Inputs, f64); 2] = [
+    ("passive", passive as Inputs, 2.0),
+    ("stretch-release", stretch_release as Inputs, 2.0),
+];
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let value = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1).cloned())
+    };
+    let runs: usize = value("--runs").map_or(3, |v| v.parse().expect("--runs N"));
+    let api = load("HillMuscleFE");
+
+    if let Some(only) = value("--only") {
+        if only == "init" {
+            println!("init: {:.3} s", init(&api));
+            return;
+        }
+        let (_, inputs, duration) = STEPPING
+            .iter()
+            .find(|w| w.0 == only)
+            .unwrap_or_else(|| panic!("--only passive | stretch-release | init"));
+        let (t, s, f) = run(&api, *inputs, 1e-3, *duration);
+        let [mean, med, ..] = stats(&t, &s);
+        println!(
+            "{only}: mean {:.3} ms, median {:.3} ms, force {f:.4} N",
+            mean * 1e3,
+            med * 1e3
+        );
+        return;
+    }
+
+    println!("HillMuscleFE through the C ABI, default mesh; median of {runs} runs");
+    println!("| workload | h (ms) | steps | mean ms/step | median ms/step | p90 ms/step | max ms/step | solves/step | wall s per simulated s | force at the end (N) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for (name, inputs, duration) in STEPPING {
+        for h in [1e-3, 1e-2, 1e-1] {
+            let mut rows = Vec::new();
+            let mut force = f64::NAN;
+            for _ in 0..runs {
+                let (t, s, f) = run(&api, inputs, h, duration);
+                force = f;
+                rows.push((stats(&t, &s), t.iter().sum::<f64>() / duration));
+            }
+            let m = |k: usize| median(rows.iter().map(|r| r.0[k]).collect());
+            let per_second = median(rows.iter().map(|r| r.1).collect());
+            println!(
+                "| {name} | {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.3} | {per_second:.3} | {force:.6} |",
+                h * 1e3,
+                (duration / h).round(),
+                m(0) * 1e3,
+                m(1) * 1e3,
+                m(2) * 1e3,
+                m(3) * 1e3,
+                m(4),
+            );
+        }
+    }
+    println!();
+    println!("Work per step in-process (the FMU's step map, its defaults)");
+    println!("| workload | h (ms) | solves/step | residuals/step | factorisations/step | substeps/step | force at the end (N) |");
+    println!("|---|---|---|---|---|---|---|");
+    for (name, inputs, duration) in STEPPING {
+        for h in [1e-3, 1e-2, 1e-1] {
+            let ([solves, residuals, factorizations, substeps], force) =
+                counts(inputs, h, duration);
+            println!(
+                "| {name} | {} | {solves:.3} | {residuals:.3} | {factorizations:.3} | {substeps:.3} | {force:.6} |",
+                h * 1e3
+            );
+        }
+    }
+    let t: Vec<f64> = (0..runs).map(|_| init(&api)).collect();
+    println!();
+    println!(
+        "activated initialization (command 1): median {:.3} s, min {:.3} s, max {:.3} s over {runs} runs",
+        median(t.clone()),
+        t.iter().cloned().fold(f64::INFINITY, f64::min),
+        t.iter().cloned().fold(0.0, f64::max)
+    );
+}
