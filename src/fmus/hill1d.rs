@@ -23,7 +23,7 @@ variables! {
     pub enum Var;
     impl[S: Scene] Hill1DModel<S> as (m, v) {
         /// A parameter of the law (MODEL_NOTES "Parameters").
-        Param(id: ParamId) = table::law_parameters()
+        Param(id: ParamId) = table::LawParameters
             => Real(get m.muscle.params.get(id), set m.muscle.params.set(id, v).map_err(|e| ModelError(e.to_string()))?);
         L0 = table::l0("Rest length of the muscle", DEFAULT_L0) => Real(m.muscle.l0);
         Area = table::area(

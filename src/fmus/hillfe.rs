@@ -70,7 +70,7 @@ variables! {
     pub enum Var;
     impl[S: Scene] HillFEModel<S> as (m, v) {
         /// A parameter of the law (MODEL_NOTES "Parameters").
-        Param(id: ParamId) = table::law_parameters()
+        Param(id: ParamId) = table::LawParameters
             => Real(get m.params.get(id), set m.params.set(id, v).map_err(|e| ModelError(e.to_string()))?);
         L0 = table::l0(
             "Rest length of the muscle (the fusiform specimen is scaled to it)",
