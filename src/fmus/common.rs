@@ -1,9 +1,10 @@
-//! What the muscle FMUs share: units, the substep tolerance, range checks
+//! What the muscle FMUs share: units and [`info_for`], the substep tolerance, range checks
 //! of a restored state (the shared variable rows are in [`super::table`]).
 
-use crate::fmi2::{ModelError, Unit};
+use crate::fmi2::{ModelError, ModelInfo, Unit};
 use crate::law::hill_fibre::FibreHistory;
 use crate::law::params::Range;
+use crate::scene::SceneSpec;
 
 /// Tolerance of both models' substep control (`substep_tolerance`'s
 /// default), relative to sigma0: the estimated local error of the CE–SEE
@@ -30,6 +31,31 @@ pub fn units() -> Vec<Unit> {
         u("Pa", 1, -1, -2),
         u("1/Pa", -1, 1, 2),
     ]
+}
+
+/// The [`ModelInfo`] of the muscle FMU of scene `spec`: its identifier,
+/// description and DefaultExperiment, the [`units`]; the unit N/m only when
+/// the scene exposes `stiffness` (so the full FMUs' interfaces, and GUIDs,
+/// are unchanged).
+pub fn info_for(spec: &SceneSpec) -> ModelInfo {
+    let mut units = units();
+    if spec.outputs.contains(&"stiffness") {
+        units.push(Unit {
+            name: "N/m",
+            kg: 1,
+            m: 0,
+            s: -2,
+        });
+    }
+    ModelInfo {
+        model_identifier: spec.model_identifier,
+        description: spec.description,
+        version: env!("CARGO_PKG_VERSION"),
+        units,
+        default_experiment: spec.default_experiment,
+        max_input_derivative_order: 1,
+        direct_feedthrough: false,
+    }
 }
 
 /// `v` in `range`, else an error naming `name` and the range.

@@ -6,7 +6,7 @@
 //! reduction" and "Co-simulation conventions"; the FMU's documentation,
 //! [`LAW_HTML`]).
 
-use super::common::units;
+use super::common::info_for;
 pub use super::common::{SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE};
 use super::table::{self, model_access, output, variables, Row, STATIC_LAW};
 use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError};
@@ -196,14 +196,8 @@ impl<S: Scene> Model for Hill1DModel<S> {
         let mut m = Hill1DModel {
             muscle: Muscle1D::new(SUBSTEP_RTOL),
         };
+        m.table_apply_scene(&S::SPEC);
         // Outputs at the start values are those of the initial equilibrium.
-        // The scene's start values and constants (checked when the scene was
-        // resolved; the setters check them again).
-        let all = all_variables();
-        crate::scene::apply_settings(&S::SPEC, &all, |var, value| {
-            m.table_set(var, value).map(|_| ()).map_err(|e| e.0)
-        })
-        .expect("the scene's settings are valid");
         m.initialize().expect("the scene's start values are valid");
         m
     }
@@ -251,30 +245,6 @@ impl<S: Scene> Model for Hill1DModel<S> {
 
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
         state::decode(input)
-    }
-}
-
-/// The [`ModelInfo`] of the 1D model of scene `spec`: its identifier,
-/// description and DefaultExperiment; the unit N/m only when the scene
-/// exposes `stiffness` (so the full FMU's interface, and GUID, are unchanged).
-pub fn info_for(spec: &crate::scene::SceneSpec) -> ModelInfo {
-    let mut units = units();
-    if spec.outputs.contains(&"stiffness") {
-        units.push(crate::fmi2::Unit {
-            name: "N/m",
-            kg: 1,
-            m: 0,
-            s: -2,
-        });
-    }
-    ModelInfo {
-        model_identifier: spec.model_identifier,
-        description: spec.description,
-        version: env!("CARGO_PKG_VERSION"),
-        units,
-        default_experiment: spec.default_experiment,
-        max_input_derivative_order: 1,
-        direct_feedthrough: false,
     }
 }
 

@@ -32,7 +32,7 @@ use crate::fe::step_map::{
     built_with, discretization, Committed, Outputs, StepLevel, Stepped, N_QUANTITIES,
 };
 use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError, VarType, Variability};
-use crate::fmus::common::{check_range, check_unit_interval, units, SUBSTEP_RTOL};
+use crate::fmus::common::{check_range, check_unit_interval, info_for, SUBSTEP_RTOL};
 use crate::fmus::table::{
     self, integer, model_access, output, parameter, real, variables, Check, Row, STATIC_LAW,
 };
@@ -416,13 +416,7 @@ impl<S: Scene> Model for HillFEModel<S> {
 
     fn new() -> Self {
         let mut m = Self::blank();
-        // The scene's start values and constants (checked when the scene was
-        // resolved; the setters check them again).
-        let all = all_variables();
-        crate::scene::apply_settings(&S::SPEC, &all, |var, value| {
-            m.table_set(var, value).map(|_| ()).map_err(|e| e.0)
-        })
-        .expect("the scene's settings are valid");
+        m.table_apply_scene(&S::SPEC);
         m.initialize().expect("the scene's start values are valid");
         m
     }
@@ -546,20 +540,6 @@ impl<S: Scene> Model for HillFEModel<S> {
 
     fn deserialize(input: &mut &[u8]) -> Result<Self, ModelError> {
         state::decode(input)
-    }
-}
-
-/// The [`ModelInfo`] of the FE model of scene `spec`: its identifier,
-/// description and DefaultExperiment.
-pub fn info_for(spec: &crate::scene::SceneSpec) -> ModelInfo {
-    ModelInfo {
-        model_identifier: spec.model_identifier,
-        description: spec.description,
-        version: env!("CARGO_PKG_VERSION"),
-        units: units(),
-        default_experiment: spec.default_experiment,
-        max_input_derivative_order: 1,
-        direct_feedthrough: false,
     }
 }
 

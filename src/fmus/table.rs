@@ -496,7 +496,8 @@ pub fn scalar_variables<V: Copy + PartialEq + std::fmt::Debug>(
 /// order, and the model's get/set dispatch that [`model_access!`] puts
 /// behind [`crate::fmi2::Model`]: `table_get_real`, `table_set_real` (and
 /// the same for Integer and Boolean), `table_set_derivative`, and the
-/// untyped `table_get` and `table_set` (scene settings, tests).
+/// untyped `table_get` and `table_set`, and `table_apply_scene` (a
+/// scene's settings through the setters).
 ///
 /// A row is `Variant = ROW => Kind(ACCESS);`, or `Variant(id: Inner) =
 /// FAMILY => Kind(ACCESS);` for a family of rows (a [`Family`]). `Kind` is
@@ -545,6 +546,19 @@ macro_rules! variables {
                         $crate::fmus::table::variables!(@get $access)
                     ), )*
                 }
+            }
+
+            /// Apply the start values and constants of scene `spec` through
+            /// the rows' setters (which check them again: the scene was
+            /// checked when fmu_build resolved it).
+            ///
+            /// # Panics
+            /// If a setting is refused (a scene type not made by fmu_build).
+            fn table_apply_scene(&mut self, spec: &$crate::scene::SceneSpec) {
+                $crate::scene::apply_settings(spec, &all_variables(), |var, value| {
+                    self.table_set(var, value).map(|_| ()).map_err(|e| e.0)
+                })
+                .expect("the scene's settings are valid");
             }
 
             /// Set `var` to `value` once its row admits it.
