@@ -3,7 +3,7 @@
 
 use crate::fmi2::{ModelError, ModelInfo, Unit};
 use crate::law::hill_fibre::FibreHistory;
-use crate::law::params::Range;
+use crate::law::params::{out_of_range, Range};
 use crate::scene::SceneSpec;
 
 /// Tolerance of both models' substep control (`substep_tolerance`'s
@@ -60,13 +60,7 @@ pub fn info_for(spec: &SceneSpec) -> ModelInfo {
 
 /// `v` in `range`, else an error naming `name` and the range.
 pub fn check_range(name: &str, v: f64, range: Range) -> Result<(), ModelError> {
-    if range.contains(v) {
-        Ok(())
-    } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be {range}"
-        )))
-    }
+    range.check(name, v).map_err(ModelError)
 }
 
 /// `v` in [0, 1], else an error naming `name`.
@@ -74,9 +68,7 @@ pub fn check_unit_interval(name: &str, v: f64) -> Result<(), ModelError> {
     if (0.0..=1.0).contains(&v) {
         Ok(())
     } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be in [0, 1]"
-        )))
+        Err(ModelError(out_of_range(name, v, "in [0, 1]")))
     }
 }
 

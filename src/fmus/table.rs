@@ -17,7 +17,9 @@
 use crate::fmi2::{
     Causality, Initial, ModelError, ScalarVariable, SetOutcome, VarType, Variability,
 };
-use crate::law::params::{Bound, ParamInfo, Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
+use crate::law::params::{
+    out_of_range, Bound, ParamInfo, Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE,
+};
 use crate::law::{ParamId, PARAMETERS};
 pub use crate::scene::Value;
 
@@ -369,8 +371,10 @@ fn refuse_real(
     r: Range,
 ) -> Result<(f64, SetOutcome), ModelError> {
     let refuse = |prefix: &str, must: String| {
-        Err(ModelError(format!(
-            "{prefix}{name} = {x} is out of range: must be {must}"
+        Err(ModelError(out_of_range(
+            format_args!("{prefix}{name}"),
+            x,
+            must,
         )))
     };
     let closed = || format!("in [{}, {}]", Bound(r.min), Bound(r.max));
@@ -406,9 +410,10 @@ impl Admit for i32 {
                     max: Some(max),
                     ..
                 },
-            ) if !(min..=max).contains(&self) => Err(ModelError(format!(
-                "{} = {self} is out of range: must be in [{min}, {max}]",
-                row.name
+            ) if !(min..=max).contains(&self) => Err(ModelError(out_of_range(
+                row.name,
+                self,
+                format_args!("in [{min}, {max}]"),
             ))),
             _ => Ok((self, SetOutcome::Ok)),
         }
