@@ -566,32 +566,6 @@ mod tests {
         }
     }
 
-    /// The scenes' mesh levels (src/scene, compiled without the FE code) are
-    /// the FE module's: `lumped` the default mesh and its grading, `level0`
-    /// … `level4` the refinement levels, ungraded.
-    #[test]
-    fn the_scene_mesh_levels_are_the_fe_meshes() {
-        let as_mesh = |l: &crate::scene::MeshLevel| {
-            (
-                Resolution {
-                    n_axial: l.n_axial as usize,
-                    n_radial: l.n_radial as usize,
-                },
-                Grading {
-                    axial: l.axial_grading,
-                    radial: l.radial_grading,
-                },
-            )
-        };
-        let levels = crate::scene::MESH_LEVELS;
-        assert_eq!(levels[0].name, "lumped");
-        assert_eq!(as_mesh(&levels[0]), (DEFAULT_MESH, DEFAULT_GRADING));
-        for (i, (level, res)) in levels[1..].iter().zip(crate::fe::mesh::LEVELS).enumerate() {
-            assert_eq!(level.name, format!("level{i}"));
-            assert_eq!(as_mesh(level), (res, Grading::UNIFORM));
-        }
-    }
-
     /// A 6 × 1 muscle at `stretch` L0 and activation level `level`, with or
     /// without `adaptive_substeps`.
     fn muscle(stretch: f64, level: f64, adaptive: bool) -> HillFE {
