@@ -23,31 +23,20 @@ use crate::fe::muscle::Muscle;
 use crate::law::activation::{level_at, Decay};
 use crate::law::{FibreHistory, FibreRate, Params};
 
-/// The FE muscle's outputs, in the fixed order of [`Outputs`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Quantity {
-    /// Axial reaction on the moved face, tension positive.
-    Force,
-    /// Force / area.
-    Stress,
-    /// Force · length / v (v the current volume: by equilibrium, the volume
-    /// average of σ_xx).
-    CauchyStress,
-    ActivationLevel,
-    /// Volume averages (reference volumes) of the modified fibre stretch,
-    /// the CE and SEE stretches and the SEE stress σ_s.
-    FibreStretch,
-    CeStretch,
-    SeeStretch,
-    ActiveStress,
-    /// Stress − active stress.
-    PassiveStress,
-    /// Extremes over the elements of the constrained volume ratio
-    /// ([`crate::fe::discretization::ElementState::j_assumed`]).
-    VolumeRatioMin,
-    VolumeRatioMax,
-    /// Largest element modified fibre stretch.
-    MaxFibreStretch,
+crate::outputs::muscle_outputs! {
+    /// The FE muscle's outputs, in the fixed order of [`Outputs`]: the
+    /// force is the axial reaction on the moved face; the Cauchy stress
+    /// force · length / v (v the current volume: by equilibrium, the volume
+    /// average of σ_xx); the fibre, CE and SEE stretches and the active
+    /// stress are volume averages (reference volumes).
+    pub enum Quantity {
+        /// Extremes over the elements of the constrained volume ratio
+        /// ([`crate::fe::discretization::ElementState::j_assumed`]).
+        VolumeRatioMin,
+        VolumeRatioMax,
+        /// Largest element modified fibre stretch.
+        MaxFibreStretch,
+    }
 }
 
 /// Number of [`Quantity`] values.
