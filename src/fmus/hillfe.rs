@@ -16,10 +16,11 @@ use crate::fe::step_map::{
     built_with, check_stretch, discretization, end_length, Committed, Outputs, StepLevel, Stepped,
     N_QUANTITIES,
 };
-use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError, VarType, Variability};
-use crate::fmus::common::{check_range, check_unit_interval, info_for, SUBSTEP_RTOL};
+use crate::fmi2::{Model, ModelError, StepError, VarType, Variability};
+use crate::fmus::common::{check_range, check_unit_interval, SUBSTEP_RTOL};
 use crate::fmus::table::{
-    self, integer, model_access, output, parameter, real, variables, Check, Row, STATIC_LAW,
+    self, integer, model_access, output, parameter, real, scene_interface, variables, Check, Row,
+    STATIC_LAW,
 };
 use crate::law::activation::Decay;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
@@ -373,15 +374,7 @@ impl<S: Scene> HillFEModel<S> {
 impl<S: Scene> Model for HillFEModel<S> {
     type Var = Var;
 
-    fn info() -> ModelInfo {
-        info_for(&S::SPEC)
-    }
-
-    /// The scene's variables: [`all_variables`] restricted to what the scene
-    /// exposes ([`crate::scene::SceneSpec::variables`]).
-    fn variables() -> Vec<ScalarVariable<Var>> {
-        S::SPEC.variables(all_variables())
-    }
+    scene_interface!();
 
     fn new() -> Self {
         let mut m = Self::blank();

@@ -692,6 +692,24 @@ macro_rules! variables {
 }
 pub(crate) use variables;
 
+/// The [`crate::fmi2::Model`] methods that describe a scene's FMU, put
+/// inside the `impl Model` block of a model generic over `S: Scene`: its
+/// [`crate::fmi2::ModelInfo`] ([`super::common::info_for`]) and its
+/// variables (the table's `all_variables()` restricted to what the scene
+/// exposes, [`crate::scene::SceneSpec::variables`]).
+macro_rules! scene_interface {
+    () => {
+        fn info() -> $crate::fmi2::ModelInfo {
+            $crate::fmus::common::info_for(&S::SPEC)
+        }
+
+        fn variables() -> Vec<$crate::fmi2::ScalarVariable<Self::Var>> {
+            S::SPEC.variables(all_variables())
+        }
+    };
+}
+pub(crate) use scene_interface;
+
 /// The [`crate::fmi2::Model`] methods that read and write variables, put
 /// inside a model's `impl Model` block: each goes through the model's
 /// table ([`variables!`]). A variable of another type reads as NaN, 0 or
