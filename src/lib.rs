@@ -14,6 +14,7 @@
 //!   behind HillMuscleFE, with the sparse solver faer.
 //! - [`step_control`]: the one accept/grow/shrink policy of the CE–SEE
 //!   update's error control.
+//! - [`outputs`]: the outputs both muscles compute, named once.
 //! - [`law`]: the muscle law: parameters, fibre curves, the CE–SEE step
 //!   solve, the 3D stress and tangent, the 1D uniaxial reduction.
 //!
@@ -29,6 +30,7 @@ pub mod fmi2;
 pub mod fmus;
 pub mod law;
 pub mod muscle1d;
+pub mod outputs;
 pub mod scene;
 pub mod specimen;
 pub mod step_control;

@@ -11,8 +11,9 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("law", &[]),
     ("step_control", &[]),
     ("specimen", &[]),
-    ("muscle1d", &["law", "step_control", "specimen"]),
-    ("fe", &["law", "step_control", "specimen"]),
+    ("outputs", &[]),
+    ("muscle1d", &["law", "step_control", "specimen", "outputs"]),
+    ("fe", &["law", "step_control", "specimen", "outputs"]),
     ("fmi2", &[]),
     ("scene", &["fmi2", "law"]),
     (

@@ -63,12 +63,12 @@ fn describe_table<V: Copy>(
 fn describe(spec: &SceneSpec) -> (String, String) {
     match spec.variant {
         Variant::OneD => describe_table(
-            &fmus::hill1d::info_for(spec),
+            &fmus::common::info_for(spec),
             &spec.variables(fmus::hill1d::all_variables()),
             fmus::hill1d::LAW_HTML,
         ),
         Variant::Fe => describe_table(
-            &fmus::hillfe::info_for(spec),
+            &fmus::common::info_for(spec),
             &spec.variables(fmus::hillfe::all_variables()),
             &format!("{}{}", fmus::hillfe::FE_HTML, fmus::hill1d::LAW_HTML),
         ),

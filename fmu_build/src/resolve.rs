@@ -10,12 +10,11 @@
 //! declared range, and exposes only the inputs and outputs its components
 //! can compute.
 
+use hill_muscle::fe::mesh::{Grading, Resolution, LEVELS, LUMPED, LUMPED_GRADING};
 use hill_muscle::fmi2::{Causality, ScalarVariable, VarType};
 use hill_muscle::fmus::{hill1d, hillfe};
 use hill_muscle::law::params::Bound;
-use hill_muscle::scene::{
-    Components, Inputs, MeshLevel, SceneSpec, Setting, Value, Variant, MESH_LEVELS,
-};
+use hill_muscle::scene::{Components, Inputs, SceneSpec, Setting, Value, Variant};
 
 /// The variants a scene can name, with their names in scene files.
 pub const VARIANTS: [Variant; 2] = [Variant::OneD, Variant::Fe];
@@ -65,16 +64,51 @@ pub struct Draft {
     pub default_experiment: Option<(f64, f64, f64)>,
 }
 
+/// An FE mesh level a scene can name ([`MESH_LEVELS`]): the mesh it sets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct MeshLevel {
+    pub name: &'static str,
+    pub resolution: Resolution,
+    pub grading: Grading,
+}
+
+/// The FE mesh levels a scene can name: `lumped` (the default mesh,
+/// `fe::mesh::LUMPED` with its grading) and the refinement levels `level0`
+/// … `level4` (`fe::mesh::LEVELS`, ungraded).
+pub(crate) const MESH_LEVELS: [MeshLevel; 6] = [
+    MeshLevel {
+        name: "lumped",
+        resolution: LUMPED,
+        grading: LUMPED_GRADING,
+    },
+    refinement("level0", 0),
+    refinement("level1", 1),
+    refinement("level2", 2),
+    refinement("level3", 3),
+    refinement("level4", 4),
+];
+
+/// The refinement level `name`: `fe::mesh::LEVELS[i]`, ungraded.
+const fn refinement(name: &'static str, i: usize) -> MeshLevel {
+    MeshLevel {
+        name,
+        resolution: LEVELS[i],
+        grading: Grading::UNIFORM,
+    }
+}
+
 /// The parameters a mesh level sets.
 const MESH_PARAMETERS: [&str; 4] = ["n_axial", "n_radial", "axial_grading", "radial_grading"];
 
 /// The value `level` gives mesh parameter `name` (one of [`MESH_PARAMETERS`]).
 fn mesh_value(level: &MeshLevel, name: &str) -> Value {
+    // The mesh sizes are at most the table's declared maxima (96, 16).
+    let count = |n: usize| Value::Integer(i32::try_from(n).expect("a mesh size fits in i32"));
     match name {
-        "n_axial" => Value::Integer(level.n_axial),
-        "n_radial" => Value::Integer(level.n_radial),
-        "axial_grading" => Value::Real(level.axial_grading),
-        _ => Value::Real(level.radial_grading),
+        "n_axial" => count(level.resolution.n_axial),
+        "n_radial" => count(level.resolution.n_radial),
+        "axial_grading" => Value::Real(level.grading.axial),
+        _ => Value::Real(level.grading.radial),
     }
 }
 

@@ -77,3 +77,21 @@ fn the_shipped_types_are_the_resolved_scenes() {
     assert_eq!(s::HillPassive1D::SPEC, by_id("HillPassive1D"));
     assert_eq!(s::HillActivatedFE::SPEC, by_id("HillActivatedFE"));
 }
+
+/// The scenes' mesh levels are the FE module's: `lumped` the default mesh
+/// of `HillMuscleFE` and its grading, `level0` … `level4` the refinement
+/// levels, ungraded.
+#[test]
+fn the_scene_mesh_levels_are_the_fe_meshes() {
+    use hill_muscle::fe::mesh::{Grading, LEVELS};
+    let levels = crate::resolve::MESH_LEVELS;
+    assert_eq!(levels[0].name, "lumped");
+    assert_eq!(
+        (levels[0].resolution, levels[0].grading),
+        (fmus::hillfe::DEFAULT_MESH, fmus::hillfe::DEFAULT_GRADING)
+    );
+    for (i, (level, res)) in levels[1..].iter().zip(LEVELS).enumerate() {
+        assert_eq!(level.name, format!("level{i}"));
+        assert_eq!((level.resolution, level.grading), (res, Grading::UNIFORM));
+    }
+}

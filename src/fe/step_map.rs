@@ -6,7 +6,8 @@
 //!
 //! Entry points: [`discretization`] (the fusiform specimen, reused when
 //! unchanged), [`Committed::initialize`], [`Committed::step`],
-//! [`Committed::force_derivatives`], [`Committed::output_jacobian`].
+//! [`Committed::partial`] (from [`Committed::force_derivatives`],
+//! [`Committed::output_jacobian`]), [`check_stretch`], [`end_length`].
 //!
 //! Invariants: a step that fails returns [`StepFailure`] and changes
 //! nothing. The derivatives are those of the map that produced the
@@ -21,33 +22,23 @@ use crate::fe::discretization::{Discretization, Ends, Evaluation};
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::muscle::Muscle;
 use crate::law::activation::{level_at, Decay};
+use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{FibreHistory, FibreRate, Params};
 
-/// The FE muscle's outputs, in the fixed order of [`Outputs`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Quantity {
-    /// Axial reaction on the moved face, tension positive.
-    Force,
-    /// Force / area.
-    Stress,
-    /// Force · length / v (v the current volume: by equilibrium, the volume
-    /// average of σ_xx).
-    CauchyStress,
-    ActivationLevel,
-    /// Volume averages (reference volumes) of the modified fibre stretch,
-    /// the CE and SEE stretches and the SEE stress σ_s.
-    FibreStretch,
-    CeStretch,
-    SeeStretch,
-    ActiveStress,
-    /// Stress − active stress.
-    PassiveStress,
-    /// Extremes over the elements of the constrained volume ratio
-    /// ([`crate::fe::discretization::ElementState::j_assumed`]).
-    VolumeRatioMin,
-    VolumeRatioMax,
-    /// Largest element modified fibre stretch.
-    MaxFibreStretch,
+crate::outputs::muscle_outputs! {
+    /// The FE muscle's outputs, in the fixed order of [`Outputs`]: the
+    /// force is the axial reaction on the moved face; the Cauchy stress
+    /// force · length / v (v the current volume: by equilibrium, the volume
+    /// average of σ_xx); the fibre, CE and SEE stretches and the active
+    /// stress are volume averages (reference volumes).
+    pub enum Quantity {
+        /// Extremes over the elements of the constrained volume ratio
+        /// ([`crate::fe::discretization::ElementState::j_assumed`]).
+        VolumeRatioMin,
+        VolumeRatioMax,
+        /// Largest element modified fibre stretch.
+        MaxFibreStretch,
+    }
 }
 
 /// Number of [`Quantity`] values.
@@ -414,6 +405,31 @@ impl Committed {
         })
     }
 
+    /// ∂`out`/∂(input) of the last step's map, the input the length when
+    /// `by_length`, else the activation command: `ActivationLevel`'s
+    /// exactly (∂a/∂u; 0 by the length), `Force` and `Stress` from
+    /// [`Self::force_derivatives`], the others from
+    /// [`Self::output_jacobian`]. `l0` scales the length differences,
+    /// `area` the stresses.
+    pub fn partial(
+        &self,
+        out: Quantity,
+        by_length: bool,
+        p: &Params,
+        l0: f64,
+        area: f64,
+    ) -> Result<f64, String> {
+        match out {
+            Quantity::ActivationLevel => Ok(if by_length { 0.0 } else { self.last.da_du }),
+            Quantity::Force | Quantity::Stress => {
+                let (dl, du) = self.force_derivatives(p, l0, area)?;
+                let d = if by_length { dl } else { du };
+                Ok(if out == Quantity::Force { d } else { d / area })
+            }
+            _ => Ok(self.output_jacobian(p, l0, area)?[out as usize][usize::from(!by_length)]),
+        }
+    }
+
     /// (dF/dL, dF/du) of the last step's map at the committed state (u the
     /// activation command): from the converged tangent (one factorisation
     /// and two solves, [`Discretization::force_derivatives`]; dF/du =
@@ -494,6 +510,35 @@ impl Committed {
             })
             .clone()
     }
+}
+
+/// `length` over the rest length `l0` within the stretches the law can
+/// evaluate ([`evaluable_stretch_range`]), else the message naming both.
+pub fn check_stretch(p: &Params, l0: f64, length: f64) -> Result<(), String> {
+    let (lo, hi) = evaluable_stretch_range(p);
+    let lambda = length / l0;
+    if (lo..=hi).contains(&lambda) {
+        Ok(())
+    } else {
+        Err(format!(
+            "length = {length} m with L0 = {l0} m (stretch {lambda}) is outside the range the law can evaluate, [{lo:.4}, {hi:.4}]"
+        ))
+    }
+}
+
+/// The length at the end of a step of `h` from `length` moving at `rate`
+/// (docs/reference/conventions.md, "Inputs hold over the step"): finite,
+/// positive and evaluable ([`check_stretch`] with the rest length `l0`),
+/// else the message saying which.
+pub fn end_length(length: f64, rate: f64, h: f64, p: &Params, l0: f64) -> Result<f64, String> {
+    let end = length + h * rate;
+    if !(end.is_finite() && end > 0.0) {
+        return Err(format!(
+            "length at the end of the step, length + h * der(length) = {end}, must be finite and > 0"
+        ));
+    }
+    check_stretch(p, l0, end)?;
+    Ok(end)
 }
 
 /// The outputs' derivatives of a substepped step's map by central

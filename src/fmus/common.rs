@@ -1,9 +1,10 @@
-//! What the muscle FMUs share: units, the substep tolerance, range checks
+//! What the muscle FMUs share: units and [`info_for`], the substep tolerance, range checks
 //! of a restored state (the shared variable rows are in [`super::table`]).
 
-use crate::fmi2::{ModelError, Unit};
+use crate::fmi2::{ModelError, ModelInfo, Unit};
 use crate::law::hill_fibre::FibreHistory;
-use crate::law::params::Range;
+use crate::law::params::{out_of_range, Range};
+use crate::scene::SceneSpec;
 
 /// Tolerance of both models' substep control (`substep_tolerance`'s
 /// default), relative to sigma0: the estimated local error of the CE–SEE
@@ -32,15 +33,34 @@ pub fn units() -> Vec<Unit> {
     ]
 }
 
+/// The [`ModelInfo`] of the muscle FMU of scene `spec`: its identifier,
+/// description and DefaultExperiment, the [`units`]; the unit N/m only when
+/// the scene exposes `stiffness` (so the full FMUs' interfaces, and GUIDs,
+/// are unchanged).
+pub fn info_for(spec: &SceneSpec) -> ModelInfo {
+    let mut units = units();
+    if spec.outputs.contains(&"stiffness") {
+        units.push(Unit {
+            name: "N/m",
+            kg: 1,
+            m: 0,
+            s: -2,
+        });
+    }
+    ModelInfo {
+        model_identifier: spec.model_identifier,
+        description: spec.description,
+        version: env!("CARGO_PKG_VERSION"),
+        units,
+        default_experiment: spec.default_experiment,
+        max_input_derivative_order: 1,
+        direct_feedthrough: false,
+    }
+}
+
 /// `v` in `range`, else an error naming `name` and the range.
 pub fn check_range(name: &str, v: f64, range: Range) -> Result<(), ModelError> {
-    if range.contains(v) {
-        Ok(())
-    } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be {range}"
-        )))
-    }
+    range.check(name, v).map_err(ModelError)
 }
 
 /// `v` in [0, 1], else an error naming `name`.
@@ -48,9 +68,7 @@ pub fn check_unit_interval(name: &str, v: f64) -> Result<(), ModelError> {
     if (0.0..=1.0).contains(&v) {
         Ok(())
     } else {
-        Err(ModelError(format!(
-            "{name} = {v} is out of range: must be in [0, 1]"
-        )))
+        Err(ModelError(out_of_range(name, v, "in [0, 1]")))
     }
 }
 

@@ -6,10 +6,9 @@
 //! reduction" and "Co-simulation conventions"; the FMU's documentation,
 //! [`LAW_HTML`]).
 
-use super::common::units;
 pub use super::common::{SUBSTEP_RTOL, SUBSTEP_TOLERANCE_RANGE};
-use super::table::{self, model_access, output, variables, Row, STATIC_LAW};
-use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError};
+use super::table::{self, model_access, output, scene_interface, variables, Row, STATIC_LAW};
+use crate::fmi2::{Model, ModelError, StepError};
 use crate::law::ParamId;
 pub use crate::muscle1d::{piece_error, Output, StepStatistics, DEFAULT_AREA, DEFAULT_L0};
 use crate::muscle1d::{Discard, Input, Muscle1D, N_OUT};
@@ -23,7 +22,7 @@ variables! {
     pub enum Var;
     impl[S: Scene] Hill1DModel<S> as (m, v) {
         /// A parameter of the law (MODEL_NOTES "Parameters").
-        Param(id: ParamId) = table::law_parameters()
+        Param(id: ParamId) = table::LawParameters
             => Real(get m.muscle.params.get(id), set m.muscle.params.set(id, v).map_err(|e| ModelError(e.to_string()))?);
         L0 = table::l0("Rest length of the muscle", DEFAULT_L0) => Real(m.muscle.l0);
         Area = table::area(
@@ -180,30 +179,14 @@ fn discard_message<S: Scene>(d: Discard) -> String {
 impl<S: Scene> Model for Hill1DModel<S> {
     type Var = Var;
 
-    /// The scene's identifier, description and DefaultExperiment; the unit
-    /// N/m only when the scene exposes `stiffness` (so the full FMU's
-    /// interface, and its GUID, are unchanged).
-    fn info() -> ModelInfo {
-        info_for(&S::SPEC)
-    }
-    /// The scene's variables: [`all_variables`] restricted to what the scene
-    /// exposes ([`crate::scene::SceneSpec::variables`]).
-    fn variables() -> Vec<ScalarVariable<Var>> {
-        S::SPEC.variables(all_variables())
-    }
+    scene_interface!();
 
     fn new() -> Self {
         let mut m = Hill1DModel {
             muscle: Muscle1D::new(SUBSTEP_RTOL),
         };
+        m.table_apply_scene(&S::SPEC);
         // Outputs at the start values are those of the initial equilibrium.
-        // The scene's start values and constants (checked when the scene was
-        // resolved; the setters check them again).
-        let all = all_variables();
-        crate::scene::apply_settings(&S::SPEC, &all, |var, value| {
-            m.table_set(var, value).map(|_| ()).map_err(|e| e.0)
-        })
-        .expect("the scene's settings are valid");
         m.initialize().expect("the scene's start values are valid");
         m
     }
@@ -254,68 +237,12 @@ impl<S: Scene> Model for Hill1DModel<S> {
     }
 }
 
-/// The [`ModelInfo`] of the 1D model of scene `spec`: its identifier,
-/// description and DefaultExperiment; the unit N/m only when the scene
-/// exposes `stiffness` (so the full FMU's interface, and GUID, are unchanged).
-pub fn info_for(spec: &crate::scene::SceneSpec) -> ModelInfo {
-    let mut units = units();
-    if spec.outputs.contains(&"stiffness") {
-        units.push(crate::fmi2::Unit {
-            name: "N/m",
-            kg: 1,
-            m: 0,
-            s: -2,
-        });
-    }
-    ModelInfo {
-        model_identifier: spec.model_identifier,
-        description: spec.description,
-        version: env!("CARGO_PKG_VERSION"),
-        units,
-        default_experiment: spec.default_experiment,
-        max_input_derivative_order: 1,
-        direct_feedthrough: false,
-    }
-}
-
 /// The law and the conventions, for the FMU's `documentation/index.html`.
 pub const LAW_HTML: &str = include_str!("doc/hill1d.html");
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fmus::common::{assert_restore_refuses, restored};
-
-    /// A restored state is checked as strictly as the calls that produce
-    /// its values: an activation command or level outside [0, 1], a
-    /// non-positive CE or SEE stretch, a non-positive stretch or a length
-    /// outside its range is refused naming it (a crafted state: the
-    /// layer's checksum is not a signature), while the unmodified state
-    /// round-trips.
-    #[test]
-    fn a_restored_state_with_unphysical_values_is_refused() {
-        let mut m = Hill1D::new();
-        m.set_real(Var::Activation, 0.6).unwrap();
-        m.set_real(Var::Length, 1.05 * DEFAULT_L0).unwrap();
-        m.initialize().unwrap();
-        for _ in 0..3 {
-            m.do_step(0.0, 1e-3).unwrap();
-        }
-        let force = Var::Out(Output::Force);
-        let back = restored(&m).expect("an unmodified state");
-        assert_eq!(back.get_real(force), m.get_real(force));
-        assert_restore_refuses(&m, |f| f.muscle.command = 5.0, "activation = 5");
-        assert_restore_refuses(&m, |f| f.muscle.command = -3.0, "activation = -3");
-        assert_restore_refuses(
-            &m,
-            |f| f.muscle.activation_level = 4.0,
-            "activation level = 4",
-        );
-        assert_restore_refuses(&m, |f| f.muscle.history.lambda_m = -1.0, "CE stretch -1");
-        assert_restore_refuses(&m, |f| f.muscle.history.lambda_s = 0.0, "SEE stretch 0");
-        assert_restore_refuses(&m, |f| f.muscle.lambda = -0.5, "stretch -0.5 must be > 0");
-        assert_restore_refuses(&m, |f| f.muscle.length = Some(1e3), "length = 1000");
-    }
 
     /// A step so short that 1/h overflows (h = 5e-324, finite and > 0, so
     /// the layer accepts it) after a length change is discarded with a

@@ -6,7 +6,7 @@
 //! `all_variables()` and the get/set dispatch ([`model_access!`]).
 //!
 //! The rows both muscle models have are declared here once: the law's
-//! parameters ([`law_parameters`], from [`PARAMETERS`]), `L0`, `area`, the
+//! parameters ([`LawParameters`], from [`PARAMETERS`]), `L0`, `area`, the
 //! activation and substep options, the inputs `activation` and `length`,
 //! and the names and units of the common outputs.
 //!
@@ -17,7 +17,9 @@
 use crate::fmi2::{
     Causality, Initial, ModelError, ScalarVariable, SetOutcome, VarType, Variability,
 };
-use crate::law::params::{Bound, ParamInfo, Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
+use crate::law::params::{
+    out_of_range, Bound, ParamInfo, Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE,
+};
 use crate::law::{ParamId, PARAMETERS};
 pub use crate::scene::Value;
 
@@ -152,9 +154,23 @@ pub const fn law_parameter<V>(info: &ParamInfo) -> Row<V> {
     )
 }
 
-/// The law's parameters, in [`PARAMETERS`] order: both models' first rows.
-pub fn law_parameters<V>() -> impl Iterator<Item = (ParamId, Row<V>)> {
-    PARAMETERS.iter().map(|info| (info.id, law_parameter(info)))
+/// The law's parameters as a family of rows, in [`PARAMETERS`] order: both
+/// models' first rows.
+pub struct LawParameters;
+
+impl<V> Family<ParamId, V> for LawParameters {
+    fn rows(&self) -> Vec<(ParamId, Row<V>)> {
+        PARAMETERS
+            .iter()
+            .map(|info| (info.id, law_parameter(info)))
+            .collect()
+    }
+
+    /// The row of `id`: [`PARAMETERS`] is in [`ParamId`] order.
+    #[inline]
+    fn row(&self, id: ParamId) -> Row<V> {
+        law_parameter(&PARAMETERS[id as usize])
+    }
 }
 
 /// The law's parameters of its static (isometric, f_v = 1) stress: the
@@ -326,39 +342,65 @@ pub trait Admit: Sized {
 }
 
 impl Admit for f64 {
+    /// The checks inline (the row is a constant where the table knows it);
+    /// the messages out of line.
+    #[inline]
     fn admit<V>(self, row: &Row<V>) -> Result<(f64, SetOutcome), ModelError> {
-        let (x, name, r) = (self, row.name, row.real_range());
-        let refuse = |prefix: &str, must: String| {
-            Err(ModelError(format!(
-                "{prefix}{name} = {x} is out of range: must be {must}"
-            )))
+        let (x, r) = (self, row.real_range());
+        let admitted = match row.check {
+            Check::None => true,
+            Check::Finite | Check::LawParameter => r.contains(x),
+            Check::Closed | Check::Clamp => (r.min..=r.max).contains(&x),
         };
-        let closed = || format!("in [{}, {}]", Bound(r.min), Bound(r.max));
-        match row.check {
-            Check::Finite if !r.contains(x) => refuse("", r.to_string()),
-            Check::LawParameter if !r.contains(x) => refuse("parameter ", r.to_string()),
-            Check::Closed if !(r.min..=r.max).contains(&x) => refuse("", closed()),
-            Check::Clamp if x.is_nan() => refuse("", closed()),
-            Check::Clamp if !(r.min..=r.max).contains(&x) => {
-                let clamped = x.clamp(r.min, r.max);
-                Ok((
-                    clamped,
-                    SetOutcome::Warning {
-                        message: format!(
-                            "{name} = {x} is outside [{}, {}]; clamped to {clamped} (logged once per instance)",
-                            Bound(r.min),
-                            Bound(r.max)
-                        ),
-                        log_once: true,
-                    },
-                ))
-            }
-            _ => Ok((x, SetOutcome::Ok)),
+        if admitted {
+            Ok((x, SetOutcome::Ok))
+        } else {
+            refuse_real(x, row.name, row.check, r)
         }
     }
 }
 
+/// A value `x` set on variable `name` that its check refuses (or, for
+/// [`Check::Clamp`], clamps with a warning), with the messages of [`Check`].
+#[cold]
+#[inline(never)]
+fn refuse_real(
+    x: f64,
+    name: &str,
+    check: Check,
+    r: Range,
+) -> Result<(f64, SetOutcome), ModelError> {
+    let refuse = |prefix: &str, must: String| {
+        Err(ModelError(out_of_range(
+            format_args!("{prefix}{name}"),
+            x,
+            must,
+        )))
+    };
+    let closed = || format!("in [{}, {}]", Bound(r.min), Bound(r.max));
+    match check {
+        Check::LawParameter => refuse("parameter ", r.to_string()),
+        Check::Clamp if !x.is_nan() => {
+            let clamped = x.clamp(r.min, r.max);
+            Ok((
+                clamped,
+                SetOutcome::Warning {
+                    message: format!(
+                        "{name} = {x} is outside [{}, {}]; clamped to {clamped} (logged once per instance)",
+                        Bound(r.min),
+                        Bound(r.max)
+                    ),
+                    log_once: true,
+                },
+            ))
+        }
+        Check::Closed | Check::Clamp => refuse("", closed()),
+        Check::Finite | Check::None => refuse("", r.to_string()),
+    }
+}
+
 impl Admit for i32 {
+    #[inline]
     fn admit<V>(self, row: &Row<V>) -> Result<(i32, SetOutcome), ModelError> {
         match (row.check, row.ty) {
             (
@@ -368,9 +410,10 @@ impl Admit for i32 {
                     max: Some(max),
                     ..
                 },
-            ) if !(min..=max).contains(&self) => Err(ModelError(format!(
-                "{} = {self} is out of range: must be in [{min}, {max}]",
-                row.name
+            ) if !(min..=max).contains(&self) => Err(ModelError(out_of_range(
+                row.name,
+                self,
+                format_args!("in [{min}, {max}]"),
             ))),
             _ => Ok((self, SetOutcome::Ok)),
         }
@@ -378,6 +421,7 @@ impl Admit for i32 {
 }
 
 impl Admit for bool {
+    #[inline]
     fn admit<V>(self, _row: &Row<V>) -> Result<(bool, SetOutcome), ModelError> {
         Ok((self, SetOutcome::Ok))
     }
@@ -396,19 +440,32 @@ pub fn refuse(value: Value) -> ModelError {
     )
 }
 
-/// The row of `id` in a family of rows (the law's parameters, the outputs).
-///
-/// # Panics
-/// If the family has no row for `id` (a table that declares a variant it
-/// does not list: a programming error).
-pub fn row_of<I: PartialEq + std::fmt::Debug, V>(
-    rows: impl IntoIterator<Item = (I, Row<V>)>,
-    id: I,
-) -> Row<V> {
-    rows.into_iter()
-        .find(|(i, _)| *i == id)
-        .map(|(_, row)| row)
-        .unwrap_or_else(|| panic!("no row for {id:?}"))
+/// A family of rows, one per value of `I` (the law's parameters, the
+/// outputs): the variant `Variant(id: I)` of a table.
+pub trait Family<I, V> {
+    /// Every row, in table order.
+    fn rows(&self) -> Vec<(I, Row<V>)>;
+    /// The row of `id`.
+    fn row(&self, id: I) -> Row<V>;
+}
+
+/// A family listed as an array of `(id, row)` pairs.
+impl<I: Copy + PartialEq + std::fmt::Debug, V: Copy, const N: usize> Family<I, V>
+    for [(I, Row<V>); N]
+{
+    fn rows(&self) -> Vec<(I, Row<V>)> {
+        self.iter().map(|&(id, row)| (id, row)).collect()
+    }
+
+    /// # Panics
+    /// If the array has no row for `id` (a table that declares a variant it
+    /// does not list: a programming error).
+    fn row(&self, id: I) -> Row<V> {
+        self.iter()
+            .find(|(i, _)| *i == id)
+            .map(|&(_, row)| row)
+            .unwrap_or_else(|| panic!("no row for {id:?}"))
+    }
 }
 
 /// The table's rows as modelDescription's variables: each row with its
@@ -441,17 +498,22 @@ pub fn scalar_variables<V: Copy + PartialEq + std::fmt::Debug>(
 
 /// A model's variable table: generates the `Var` enum (one variant a row,
 /// or a family of rows for `Variant(id: Inner)`), `all_variables()` in row
-/// order, and the model's `table_get`, `table_set` and
-/// `table_set_derivative` that [`model_access!`] puts behind
-/// [`crate::fmi2::Model`].
+/// order, and the model's get/set dispatch that [`model_access!`] puts
+/// behind [`crate::fmi2::Model`]: `table_get_real`, `table_set_real` (and
+/// the same for Integer and Boolean), `table_set_derivative`, and the
+/// untyped `table_get` and `table_set`, and `table_apply_scene` (a
+/// scene's settings through the setters).
 ///
 /// A row is `Variant = ROW => Kind(ACCESS);`, or `Variant(id: Inner) =
-/// ROWS => Kind(ACCESS);` for a family of rows (`ROWS` yields `(Inner,
-/// Row)` pairs). `Kind` is `Real`, `Integer` or `Boolean`; `ACCESS`,
-/// written with the model bound to `m` and the admitted value to `v` (the
-/// names given after `as`), is a place (read and written), `get EXPR, set
-/// EXPR`, or `get EXPR` (read only); a trailing `, der PLACE` is where an
-/// input's derivative goes.
+/// FAMILY => Kind(ACCESS);` for a family of rows (a [`Family`]). `Kind` is
+/// `Real`, `Integer` or `Boolean`; `ACCESS`, written with the model bound to
+/// `m` and the admitted value to `v` (the names given after `as`), is a
+/// place (read and written), `get EXPR, set EXPR`, or `get EXPR` (read
+/// only); a trailing `, der PLACE` is where an input's derivative goes.
+///
+/// The typed get/set are one `match` arm per row, as a hand-written match
+/// would be: a single row's check runs against the row as a `const`, a
+/// family's against its [`Family::row`].
 macro_rules! variables {
     (
         $(#[$enum_attr:meta])*
@@ -479,7 +541,7 @@ macro_rules! variables {
             $crate::fmus::table::scalar_variables(rows)
         }
 
-        #[allow(unused_variables)]
+        #[allow(unused_variables, dead_code)]
         impl<$($gen)*> $Model {
             /// The value of `var`, of its row's type.
             fn table_get(&self, var: $Var) -> $crate::fmus::table::Value {
@@ -491,23 +553,41 @@ macro_rules! variables {
                 }
             }
 
+            /// Apply the start values and constants of scene `spec` through
+            /// the rows' setters (which check them again: the scene was
+            /// checked when fmu_build resolved it).
+            ///
+            /// # Panics
+            /// If a setting is refused (a scene type not made by fmu_build).
+            fn table_apply_scene(&mut self, spec: &$crate::scene::SceneSpec) {
+                $crate::scene::apply_settings(spec, &all_variables(), |var, value| {
+                    self.table_set(var, value).map(|_| ()).map_err(|e| e.0)
+                })
+                .expect("the scene's settings are valid");
+            }
+
             /// Set `var` to `value` once its row admits it.
             fn table_set(
                 &mut self,
                 var: $Var,
                 value: $crate::fmus::table::Value,
             ) -> Result<$crate::fmi2::SetOutcome, $crate::fmi2::ModelError> {
-                let $m = self;
-                match (var, value) {
-                    $( ($Var::$Variant $(($id))?, $crate::fmus::table::Value::$Kind($v)) => {
-                        $crate::fmus::table::variables!(
-                            @set $access, $v, value,
-                            $crate::fmus::table::variables!(@row $Var, $row; $($id)?)
-                        )
-                    } )*
-                    _ => Err($crate::fmus::table::refuse(value)),
+                match value {
+                    $crate::fmus::table::Value::Real(x) => self.table_set_real(var, x),
+                    $crate::fmus::table::Value::Integer(i) => self.table_set_integer(var, i),
+                    $crate::fmus::table::Value::Boolean(b) => self.table_set_boolean(var, b),
                 }
             }
+
+            $crate::fmus::table::variables!(@typed $Var, $m, $v, Real, f64,
+                table_get_real, table_set_real, f64::NAN;
+                $( $Variant $(($id))? = $row => $Kind $access; )*);
+            $crate::fmus::table::variables!(@typed $Var, $m, $v, Integer, i32,
+                table_get_integer, table_set_integer, 0;
+                $( $Variant $(($id))? = $row => $Kind $access; )*);
+            $crate::fmus::table::variables!(@typed $Var, $m, $v, Boolean, bool,
+                table_get_boolean, table_set_boolean, false;
+                $( $Variant $(($id))? = $row => $Kind $access; )*);
 
             /// Set the derivative of input `var` to `rate`.
             fn table_set_derivative(
@@ -524,30 +604,80 @@ macro_rules! variables {
             }
         }
     };
+    // The get and set of one type: a row of that type is read and written
+    // through its access, any other reads as `$other` and refuses a set.
+    (@typed $Var:ident, $m:ident, $v:ident, $Ty:ident, $t:ty, $get:ident, $set:ident, $other:expr;
+        $( $Variant:ident $(($id:ident))? = $row:expr => $Kind:ident $access:tt; )*) => {
+        /// The value of `var` if it is of this type.
+        #[inline]
+        fn $get(&self, var: $Var) -> $t {
+            let $m = self;
+            match var {
+                $( $Var::$Variant $(($id))? =>
+                    $crate::fmus::table::variables!(@get_if $Ty $Kind $access, $other), )*
+            }
+        }
+
+        /// Set `var`, if it is of this type, to `$v` once its row admits it.
+        #[inline]
+        fn $set(
+            &mut self,
+            var: $Var,
+            $v: $t,
+        ) -> Result<$crate::fmi2::SetOutcome, $crate::fmi2::ModelError> {
+            let $m = self;
+            match var {
+                $( $Var::$Variant $(($id))? => $crate::fmus::table::variables!(
+                    @set_if $Ty $Kind $access, $v,
+                    $crate::fmus::table::variables!(@row $Var, $row; $($id)?)
+                ), )*
+            }
+        }
+    };
+    (@get_if Real Real $access:tt, $other:expr) => { $crate::fmus::table::variables!(@get $access) };
+    (@get_if Integer Integer $access:tt, $other:expr) => { $crate::fmus::table::variables!(@get $access) };
+    (@get_if Boolean Boolean $access:tt, $other:expr) => { $crate::fmus::table::variables!(@get $access) };
+    (@get_if $Ty:ident $Kind:ident $access:tt, $other:expr) => { $other };
+    (@set_if Real Real $access:tt, $v:ident, $row:expr) => {
+        $crate::fmus::table::variables!(@set $access, $v, Real, $row)
+    };
+    (@set_if Integer Integer $access:tt, $v:ident, $row:expr) => {
+        $crate::fmus::table::variables!(@set $access, $v, Integer, $row)
+    };
+    (@set_if Boolean Boolean $access:tt, $v:ident, $row:expr) => {
+        $crate::fmus::table::variables!(@set $access, $v, Boolean, $row)
+    };
+    (@set_if $Ty:ident $Kind:ident $access:tt, $v:ident, $row:expr) => {
+        Err($crate::fmus::table::refuse($crate::fmus::table::Value::$Ty($v)))
+    };
     (@rows $rows:ident, $Var:ident, $Variant:ident, $row:expr) => {
         $rows.push(($Var::$Variant, $row))
     };
     (@rows $rows:ident, $Var:ident, $Variant:ident, $family:expr, $id:ident) => {
-        $rows.extend($family.into_iter().map(|($id, row)| ($Var::$Variant($id), row)))
+        $rows.extend(
+            $crate::fmus::table::Family::<_, $Var>::rows(&$family)
+                .into_iter()
+                .map(|($id, row)| ($Var::$Variant($id), row)),
+        )
     };
     (@row $Var:ident, $row:expr;) => {{
-        let row: $crate::fmus::table::Row<$Var> = $row;
-        row
+        const ROW: $crate::fmus::table::Row<$Var> = $row;
+        ROW
     }};
     (@row $Var:ident, $family:expr; $id:ident) => {
-        $crate::fmus::table::row_of::<_, $Var>($family, $id)
+        $crate::fmus::table::Family::<_, $Var>::row(&$family, $id)
     };
     (@get (get $get:expr $(, set $set:expr)?)) => { $get };
     (@get ($place:expr)) => { $place };
-    (@set (get $get:expr), $v:ident, $value:ident, $row:expr) => {
-        Err($crate::fmus::table::refuse($value))
+    (@set (get $get:expr), $v:ident, $Ty:ident, $row:expr) => {
+        Err($crate::fmus::table::refuse($crate::fmus::table::Value::$Ty($v)))
     };
-    (@set (get $get:expr, set $set:expr), $v:ident, $value:ident, $row:expr) => {{
+    (@set (get $get:expr, set $set:expr), $v:ident, $Ty:ident, $row:expr) => {{
         let ($v, outcome) = $crate::fmus::table::Admit::admit($v, &$row)?;
         $set;
         Ok(outcome)
     }};
-    (@set ($place:expr), $v:ident, $value:ident, $row:expr) => {{
+    (@set ($place:expr), $v:ident, $Ty:ident, $row:expr) => {{
         let ($v, outcome) = $crate::fmus::table::Admit::admit($v, &$row)?;
         $place = $v;
         Ok(outcome)
@@ -562,6 +692,24 @@ macro_rules! variables {
 }
 pub(crate) use variables;
 
+/// The [`crate::fmi2::Model`] methods that describe a scene's FMU, put
+/// inside the `impl Model` block of a model generic over `S: Scene`: its
+/// [`crate::fmi2::ModelInfo`] ([`super::common::info_for`]) and its
+/// variables (the table's `all_variables()` restricted to what the scene
+/// exposes, [`crate::scene::SceneSpec::variables`]).
+macro_rules! scene_interface {
+    () => {
+        fn info() -> $crate::fmi2::ModelInfo {
+            $crate::fmus::common::info_for(&S::SPEC)
+        }
+
+        fn variables() -> Vec<$crate::fmi2::ScalarVariable<Self::Var>> {
+            S::SPEC.variables(all_variables())
+        }
+    };
+}
+pub(crate) use scene_interface;
+
 /// The [`crate::fmi2::Model`] methods that read and write variables, put
 /// inside a model's `impl Model` block: each goes through the model's
 /// table ([`variables!`]). A variable of another type reads as NaN, 0 or
@@ -569,24 +717,15 @@ pub(crate) use variables;
 macro_rules! model_access {
     () => {
         fn get_real(&self, var: Self::Var) -> f64 {
-            match self.table_get(var) {
-                $crate::fmus::table::Value::Real(x) => x,
-                _ => f64::NAN,
-            }
+            self.table_get_real(var)
         }
 
         fn get_integer(&self, var: Self::Var) -> i32 {
-            match self.table_get(var) {
-                $crate::fmus::table::Value::Integer(i) => i,
-                _ => 0,
-            }
+            self.table_get_integer(var)
         }
 
         fn get_boolean(&self, var: Self::Var) -> bool {
-            match self.table_get(var) {
-                $crate::fmus::table::Value::Boolean(b) => b,
-                _ => false,
-            }
+            self.table_get_boolean(var)
         }
 
         fn set_real(
@@ -594,7 +733,7 @@ macro_rules! model_access {
             var: Self::Var,
             value: f64,
         ) -> Result<$crate::fmi2::SetOutcome, $crate::fmi2::ModelError> {
-            self.table_set(var, $crate::fmus::table::Value::Real(value))
+            self.table_set_real(var, value)
         }
 
         fn set_integer(
@@ -602,7 +741,7 @@ macro_rules! model_access {
             var: Self::Var,
             value: i32,
         ) -> Result<$crate::fmi2::SetOutcome, $crate::fmi2::ModelError> {
-            self.table_set(var, $crate::fmus::table::Value::Integer(value))
+            self.table_set_integer(var, value)
         }
 
         fn set_boolean(
@@ -610,7 +749,7 @@ macro_rules! model_access {
             var: Self::Var,
             value: bool,
         ) -> Result<$crate::fmi2::SetOutcome, $crate::fmi2::ModelError> {
-            self.table_set(var, $crate::fmus::table::Value::Boolean(value))
+            self.table_set_boolean(var, value)
         }
 
         fn set_real_input_derivative(
@@ -712,6 +851,18 @@ mod tests {
             m.table_set_derivative(ToyVar::Gain, 1.0).unwrap_err().0,
             "not a Real input"
         );
+    }
+
+    /// [`LawParameters::row`] indexes [`PARAMETERS`] by [`ParamId`]: the
+    /// row it gives is the one [`Family::rows`] lists for the id.
+    #[test]
+    fn a_law_parameter_row_is_found_by_its_id() {
+        let rows: Vec<(ParamId, Row<()>)> = LawParameters.rows();
+        assert_eq!(rows.len(), PARAMETERS.len());
+        for (id, row) in rows {
+            let by_id: Row<()> = LawParameters.row(id);
+            assert_eq!((by_id.name, by_id.ty), (row.name, row.ty));
+        }
     }
 
     /// The shared rows refuse, clamp and name values as the models did by

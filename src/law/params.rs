@@ -41,6 +41,27 @@ impl Range {
     pub fn contains(self, x: f64) -> bool {
         x.is_finite() && x >= self.min && x <= self.max
     }
+
+    /// `v` of the variable `name` in the range, else the [`out_of_range`]
+    /// message naming it (no equation).
+    pub fn check(self, name: &str, v: f64) -> Result<(), String> {
+        if self.contains(v) {
+            Ok(())
+        } else {
+            Err(out_of_range(name, v, self))
+        }
+    }
+}
+
+/// The message of a value `v` of the variable `name` outside what it must
+/// be (`must`: a [`Range`], "in [0, 1]", ...): every range violation the
+/// models report reads "`name` = `v` is out of range: must be `must`".
+pub fn out_of_range(
+    name: impl fmt::Display,
+    v: impl fmt::Display,
+    must: impl fmt::Display,
+) -> String {
+    format!("{name} = {v} is out of range: must be {must}")
 }
 
 impl fmt::Display for Range {
@@ -232,11 +253,11 @@ pub struct ParamError {
 impl fmt::Display for ParamError {
     /// The message naming the parameter, its value and its range (no equation).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "parameter {} = {} is out of range: must be {}",
-            self.name, self.value, self.range
-        )
+        f.write_str(&out_of_range(
+            format_args!("parameter {}", self.name),
+            self.value,
+            self.range,
+        ))
     }
 }
 

@@ -4,7 +4,7 @@
 //! variable at fault and what would make it solvable.
 
 use super::muscle::Muscle1D;
-use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
+use crate::law::params::{out_of_range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::Components;
 
 /// The muscle cannot be set up or initialized: the message names the
@@ -25,17 +25,6 @@ pub enum Discard {
     AbsentFvBranch { rate: f64, sigma_see: f64 },
 }
 
-/// `v` in `range`, else the message naming `name` and the range.
-fn check_range(name: &str, v: f64, range: Range) -> Result<(), SetupError> {
-    if range.contains(v) {
-        Ok(())
-    } else {
-        Err(SetupError(format!(
-            "{name} = {v} is out of range: must be {range}"
-        )))
-    }
-}
-
 impl<C: Components> Muscle1D<C> {
     /// The setup the law can take: every parameter in its range, `L0`, `area`
     /// and the length in theirs, `initial_activation` in [0, 1].
@@ -43,15 +32,18 @@ impl<C: Components> Muscle1D<C> {
         self.params
             .validate()
             .map_err(|e| SetupError(e.to_string()))?;
-        check_range("L0", self.l0, L0_RANGE)?;
-        check_range("area", self.area, AREA_RANGE)?;
+        L0_RANGE.check("L0", self.l0).map_err(SetupError)?;
+        AREA_RANGE.check("area", self.area).map_err(SetupError)?;
         if !(0.0..=1.0).contains(&self.initial_activation) {
-            return Err(SetupError(format!(
-                "initial_activation = {} is out of range: must be in [0, 1]",
-                self.initial_activation
+            return Err(SetupError(out_of_range(
+                "initial_activation",
+                self.initial_activation,
+                "in [0, 1]",
             )));
         }
-        check_range("length", self.length(), LENGTH_RANGE)
+        LENGTH_RANGE
+            .check("length", self.length())
+            .map_err(SetupError)
     }
 
     /// Message for a length at which the law cannot be solved: names the

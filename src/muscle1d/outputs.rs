@@ -10,22 +10,14 @@ use crate::law::series_element::see_stiffness;
 use crate::law::uniaxial::{cauchy_sensitivity, Sensitivity};
 use crate::law::{Components, Uniaxial};
 
-/// The outputs, in the order the muscle stores them
-/// ([`Muscle1D::output`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Output {
-    Force,
-    Stress,
-    CauchyStress,
-    ActivationLevel,
-    FibreStretch,
-    CeStretch,
-    SeeStretch,
-    ActiveStress,
-    PassiveStress,
-    /// d force / d length of the step map (a partial, not stored: see
-    /// [`Muscle1D::output`]).
-    Stiffness,
+crate::outputs::muscle_outputs! {
+    /// The outputs, in the order the muscle stores them
+    /// ([`Muscle1D::output`]).
+    pub enum Output {
+        /// d force / d length of the step map (a partial, not stored: see
+        /// [`Muscle1D::output`]).
+        Stiffness,
+    }
 }
 
 /// How many outputs are stored: every [`Output`] but the stiffness.

@@ -209,42 +209,6 @@ impl<S: Scene> crate::law::Components for LawOf<S> {
     const ACTIVATION_INPUT: bool = S::SPEC.inputs.activation;
 }
 
-/// An FE mesh level a scene can name ([`MESH_LEVELS`]): the mesh parameters
-/// it sets (fmu_build sets them when it resolves a scene).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MeshLevel {
-    pub name: &'static str,
-    pub n_axial: i32,
-    pub n_radial: i32,
-    pub axial_grading: f64,
-    pub radial_grading: f64,
-}
-
-impl MeshLevel {
-    const fn new(name: &'static str, n_axial: i32, n_radial: i32, grading: (f64, f64)) -> Self {
-        MeshLevel {
-            name,
-            n_axial,
-            n_radial,
-            axial_grading: grading.0,
-            radial_grading: grading.1,
-        }
-    }
-}
-
-/// The FE mesh levels a scene can name: `lumped` (the default 16 × 3 of
-/// docs/fe.md, `crate::fe::mesh::LUMPED` with its grading; a test keeps the
-/// two equal) and the refinement levels `level0` … `level4`
-/// (`crate::fe::mesh::LEVELS`, ungraded).
-pub const MESH_LEVELS: [MeshLevel; 6] = [
-    MeshLevel::new("lumped", 16, 3, (0.9, 0.6)),
-    MeshLevel::new("level0", 12, 2, (0.0, 0.0)),
-    MeshLevel::new("level1", 18, 3, (0.0, 0.0)),
-    MeshLevel::new("level2", 24, 4, (0.0, 0.0)),
-    MeshLevel::new("level3", 36, 6, (0.0, 0.0)),
-    MeshLevel::new("level4", 48, 8, (0.0, 0.0)),
-];
-
 /// Apply every parameter setting of `spec` (start values and constants)
 /// through `set`, the model's own setter (which checks the range), with the
 /// variable of `all` (the variant's complete table) of the setting's name.

@@ -277,6 +277,31 @@ mod tests {
         m
     }
 
+    /// A restored state is checked as strictly as the calls that produce
+    /// its values: an activation command or level outside [0, 1], a
+    /// non-positive CE or SEE stretch, a non-positive stretch or a length
+    /// outside its range is refused naming it (a crafted state: the
+    /// layer's checksum is not a signature), while the unmodified state
+    /// round-trips.
+    #[test]
+    fn a_restored_state_with_unphysical_values_is_refused() {
+        let m = stepped();
+        let force = Var::Out(Output::Force);
+        let back = restored(&m).expect("an unmodified state");
+        assert_eq!(back.get_real(force), m.get_real(force));
+        assert_restore_refuses(&m, |f| f.muscle.command = 5.0, "activation = 5");
+        assert_restore_refuses(&m, |f| f.muscle.command = -3.0, "activation = -3");
+        assert_restore_refuses(
+            &m,
+            |f| f.muscle.activation_level = 4.0,
+            "activation level = 4",
+        );
+        assert_restore_refuses(&m, |f| f.muscle.history.lambda_m = -1.0, "CE stretch -1");
+        assert_restore_refuses(&m, |f| f.muscle.history.lambda_s = 0.0, "SEE stretch 0");
+        assert_restore_refuses(&m, |f| f.muscle.lambda = -0.5, "stretch -0.5 must be > 0");
+        assert_restore_refuses(&m, |f| f.muscle.length = Some(1e3), "length = 1000");
+    }
+
     /// A state whose stored outputs differ from those of its committed state
     /// (the layer's checksum recomputed) is refused naming the output: an
     /// activation level of 5 or −0.5, a CE stretch of −1, a force of 1e30;
