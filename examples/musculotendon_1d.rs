@@ -8,8 +8,10 @@
 //! F0 0.04 and 1e-4, and a rigid one, the tendon force is run with
 //! h = 1 ms and h = 0.01 ms; printed: the force every 10 ms at both steps,
 //! the largest difference over the 1 ms points relative to F0, the substeps
-//! the error control took per 1 ms step (1: none forced), and the
-//! equilibrium's largest residual.
+//! the error control took per 1 ms step (1: none forced), the
+//! equilibrium's largest residual, and the mean evaluations of the muscle's
+//! piece law per step (the rigid tendon without pennation is the plain
+//! muscle's step: one per piece).
 
 use hill_muscle::law::musculotendon::UnitParams;
 use hill_muscle::law::FullLaw;
@@ -26,9 +28,9 @@ fn command_at(t: f64) -> f64 {
     }
 }
 
-/// The tendon force at every 1 ms point, the most substeps of a step, and
-/// the largest equilibrium residual / F0.
-fn run(eps0: Option<f64>, h: f64, tol: f64) -> (Vec<f64>, u32, f64) {
+/// The tendon force at every 1 ms point, the most substeps of a step, the
+/// largest equilibrium residual / F0 and the mean evaluations per step.
+fn run(eps0: Option<f64>, h: f64, tol: f64) -> (Vec<f64>, u32, f64, f64) {
     let p = UnitParams {
         tendon_slack_length: L_TS,
         tendon_strain_at_f0: eps0.unwrap_or(0.04),
@@ -41,7 +43,7 @@ fn run(eps0: Option<f64>, h: f64, tol: f64) -> (Vec<f64>, u32, f64) {
     let f0 = mt.unit().tendon.f0;
     let n = (T_END / h).round() as usize;
     let every = (1e-3 / h).round() as usize;
-    let (mut forces, mut most, mut worst) = (Vec::new(), 0u32, 0.0f64);
+    let (mut forces, mut most, mut worst, mut evals) = (Vec::new(), 0u32, 0.0f64, 0u64);
     for i in 0..n {
         mt.set_command(command_at(i as f64 * h));
         mt.step(h).expect("step");
@@ -53,11 +55,12 @@ fn run(eps0: Option<f64>, h: f64, tol: f64) -> (Vec<f64>, u32, f64) {
         let r = mt.muscle.output(Output::Force) * cos - mt.output(UnitOutput::Force);
         worst = worst.max(r.abs() / f0);
         most = most.max(mt.muscle.last_step_statistics().substeps);
+        evals += u64::from(mt.last_step_evaluations());
         if (i + 1) % every == 0 {
             forces.push(mt.output(UnitOutput::Force));
         }
     }
-    (forces, most, worst)
+    (forces, most, worst, evals as f64 / n as f64)
 }
 
 fn main() {
@@ -74,8 +77,8 @@ fn main() {
         ("eps0 = 1e-4", Some(1e-4)),
         ("rigid", None),
     ] {
-        let (coarse, substeps, res_coarse) = run(eps0, 1e-3, tol);
-        let (fine, _, res_fine) = run(eps0, 1e-5, tol);
+        let (coarse, substeps, res_coarse, evals) = run(eps0, 1e-3, tol);
+        let (fine, _, res_fine, evals_fine) = run(eps0, 1e-5, tol);
         println!("{name}:");
         println!("   t (ms)   F_T h=1ms (N)   F_T h=0.01ms (N)");
         for k in (9..coarse.len()).step_by(10) {
@@ -88,10 +91,11 @@ fn main() {
             .fold(0.0, f64::max);
         println!(
             "   max |F(1 ms) - F(0.01 ms)| / F0 = {:.3e}; most substeps per 1 ms step: {substeps}; \
-             largest equilibrium residual / F0: {:.1e} (1 ms), {:.1e} (0.01 ms)\n",
+             largest equilibrium residual / F0: {:.1e} (1 ms), {:.1e} (0.01 ms); \
+             muscle evaluations per step: {evals:.2} (1 ms), {evals_fine:.2} (0.01 ms)\n",
             err / f0,
             res_coarse,
-            res_fine
+            res_fine,
         );
     }
 }

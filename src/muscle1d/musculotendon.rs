@@ -32,6 +32,7 @@ use crate::law::musculotendon::{
 use crate::law::params::LENGTH_RANGE;
 use crate::law::uniaxial::{evaluable_stretch_range, Sensitivity};
 use crate::law::{solve_uniaxial_with, Components, FibreHistory, FibreRate, Uniaxial};
+use std::cell::Cell;
 
 /// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to F0.
 pub const EQUILIBRIUM_RTOL: f64 = 1e-10;
@@ -70,15 +71,39 @@ pub struct Musculotendon1D<C: Components> {
     // Committed state beyond the muscle's.
     /// The path length at the end of the last step.
     pub(crate) committed_path: f64,
-    /// dλ/dℓ of the last step: the next step's first guess only.
-    pub(crate) fibre_slope: f64,
+    /// The first guess of the next step's pieces only (they change the
+    /// cost, not the result beyond the equilibrium's tolerance): dλ/dℓ of
+    /// the last step, and its rates of λ and of the path (1/s, m/s; 0 after
+    /// initialization).
+    pub(crate) guess: Guess,
     pub(crate) outputs: [f64; N_UNIT],
     /// dF_T/d(activation command), dF_T/dℓ of the last step.
     pub(crate) dforce: [f64; N_IN],
+    /// Evaluations of the muscle in the last step (a diagnostic, not state).
+    evaluations: Diagnostic,
 }
 
-/// The pieces' ends of a step on a path from `from` to `to`: the
-/// equilibrium at the path interpolated linearly.
+/// A count that is not part of the state: equal to every other.
+#[derive(Clone, Copy, Debug, Default)]
+struct Diagnostic(u32);
+
+impl PartialEq for Diagnostic {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+/// What the first guess of a piece's fibre stretch extrapolates from (the
+/// last step's rates and dλ/dℓ).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Guess {
+    pub(crate) slope: f64,
+    pub(crate) fibre_rate: f64,
+    pub(crate) path_rate: f64,
+}
+
+/// The pieces' ends of a step of length `h` on a path from `from` to `to`:
+/// the equilibrium at the path interpolated linearly.
 struct PathEnds<'a> {
     unit: &'a Unit,
     from: f64,
@@ -87,9 +112,12 @@ struct PathEnds<'a> {
     area: f64,
     /// The fibre lengths the law can evaluate.
     range: (f64, f64),
-    /// dλ/dℓ for the first guess.
-    slope: f64,
+    h: f64,
+    guess: Guess,
     tol: f64,
+    /// Evaluations of the muscle by the equilibrium, summed over the pieces
+    /// (tried and accepted).
+    evaluations: Cell<u32>,
 }
 
 impl PathEnds<'_> {
@@ -128,8 +156,13 @@ fn unsolvable(e: EquilibriumError<Discard>, path: f64) -> Discard {
 impl PieceEnd for PathEnds<'_> {
     const COUPLED: bool = true;
 
+    /// The first guess: the last step's fibre rate over the piece, plus
+    /// dλ/dℓ times the path's change beyond its last rate.
     fn stretch(&self, lambda: f64, from: f64, frac: f64, last: bool) -> f64 {
-        lambda + self.slope * (self.path(frac, last) - self.path(from, false))
+        let g = &self.guess;
+        let hs = (frac - from) * self.h;
+        let dpath = self.path(frac, last) - self.path(from, false);
+        lambda + g.fibre_rate * hs + g.slope * (dpath - g.path_rate * hs)
     }
 
     /// The equilibrium at the piece's path; d λ/d(path input) is
@@ -159,6 +192,8 @@ impl PieceEnd for PathEnds<'_> {
         )
         .map_err(|e| unsolvable(e, path))?;
         let u = kept.expect("the equilibrium evaluates the muscle");
+        self.evaluations
+            .set(self.evaluations.get() + eq.evaluations);
         let dpath = if last { 1.0 } else { frac };
         Ok(Solved {
             dlambda_dinput: eq.dfibre_dpath * dpath / self.l0,
@@ -178,7 +213,8 @@ impl<C: Components> Musculotendon1D<C> {
             path: None,
             path_rate: 0.0,
             committed_path: 0.0,
-            fibre_slope: 0.0,
+            guess: Guess::default(),
+            evaluations: Diagnostic::default(),
             outputs: [0.0; N_UNIT],
             dforce: [0.0; N_IN],
         }
@@ -312,7 +348,11 @@ impl<C: Components> Musculotendon1D<C> {
         self.muscle.stretch_range = stretch_range;
         self.muscle.length = Some(eq.fibre_length);
         self.muscle.commit(&u, a, None, outputs, jacobian, stats);
-        self.commit(path, dlambda[IN_LENGTH], unit_outputs, dforce);
+        let guess = Guess {
+            slope: dlambda[IN_LENGTH],
+            ..Guess::default()
+        };
+        self.commit(path, guess, unit_outputs, dforce);
         Ok(())
     }
 
@@ -331,6 +371,9 @@ impl<C: Components> Musculotendon1D<C> {
         let unit = self.unit();
         let m = &self.muscle;
         let (decay, a_end) = m.end_level(h);
+        // The rigid tendon without pennation evaluates the muscle once per
+        // piece tried, as the plain muscle.
+        let mut evaluations = 0;
         let Stepped {
             u,
             a,
@@ -355,10 +398,14 @@ impl<C: Components> Musculotendon1D<C> {
                 l0: m.l0,
                 area: m.area,
                 range: (m.stretch_range.0 * m.l0, m.stretch_range.1 * m.l0),
-                slope: self.fibre_slope,
+                h,
+                guess: self.guess,
                 tol: self.tol(),
+                evaluations: Cell::new(0),
             };
-            m.solve_step_to(h, &ends, a_end)?
+            let stepped = m.solve_step_to(h, &ends, a_end)?;
+            evaluations = ends.evaluations.get();
+            stepped
         };
         let (outputs, jacobian) = m.evaluate(&u, a, sens, da_du);
         let jacobian = rechain(jacobian, &u, &sens, dlambda);
@@ -370,17 +417,23 @@ impl<C: Components> Musculotendon1D<C> {
                 "non-finite tendon force or derivative at path length {path} m"
             )));
         }
+        let guess = Guess {
+            slope: dlambda[IN_LENGTH],
+            fibre_rate: (u.lambda - self.muscle.lambda) / h,
+            path_rate: (path - self.committed_path) / h,
+        };
         self.muscle.length = Some(u.lambda * self.muscle.l0);
         self.muscle
             .finish_step(&u, a, h, decay, outputs, jacobian, stats);
-        self.commit(path, dlambda[IN_LENGTH], unit_outputs, dforce);
+        self.commit(path, guess, unit_outputs, dforce);
+        self.evaluations = Diagnostic(evaluations.max(stats.substeps + stats.rejected_substeps));
         self.path_rate = 0.0;
         Ok(())
     }
 
-    fn commit(&mut self, path: f64, slope: f64, outputs: [f64; N_UNIT], dforce: [f64; N_IN]) {
+    fn commit(&mut self, path: f64, guess: Guess, outputs: [f64; N_UNIT], dforce: [f64; N_IN]) {
         self.committed_path = path;
-        self.fibre_slope = slope;
+        self.guess = guess;
         self.outputs = outputs;
         self.dforce = dforce;
     }
@@ -422,6 +475,13 @@ impl<C: Components> Musculotendon1D<C> {
         };
         let stress = outputs[super::outputs::Output::Stress as usize];
         ([force, stress, l_m, strain, pen.angle], dforce)
+    }
+
+    /// How many times the last step evaluated the muscle's piece law
+    /// (uniaxial solves, over every piece tried): its substeps for a rigid
+    /// tendon without pennation, more where the equilibrium is solved.
+    pub fn last_step_evaluations(&self) -> u32 {
+        self.evaluations.0
     }
 
     /// The value of `out` after the last step or initialization; the
@@ -489,275 +549,4 @@ fn rechain(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::law::FullLaw;
-    use crate::muscle1d::Output;
-
-    type Unit1D = Musculotendon1D<FullLaw>;
-
-    /// A unit of the default muscle (L0 = 5 cm) with a tendon of slack
-    /// length 4 cm, the path at L_TS + 1.02 L0 cos α0.
-    fn unit(eps0: f64, alpha0: f64, compliant: bool) -> Unit1D {
-        let p = UnitParams {
-            tendon_slack_length: 0.04,
-            tendon_strain_at_f0: eps0,
-            pennation_angle: alpha0,
-            compliant_tendon: compliant,
-        };
-        let mut mt = Musculotendon1D::new(Muscle1D::new(1e-3), p);
-        mt.set_path(0.04 + 1.02 * 0.05 * alpha0.cos());
-        mt.initialize().unwrap();
-        mt
-    }
-
-    fn f0(mt: &Unit1D) -> f64 {
-        mt.muscle.params.sigma0 * mt.muscle.area
-    }
-
-    /// F_M cos α − F_T at the committed state.
-    fn residual(mt: &Unit1D) -> f64 {
-        let l_m = mt.output(UnitOutput::FibreLength);
-        let cos = mt.unit().pennation.at(l_m).cos;
-        mt.muscle.output(Output::Force) * cos - mt.output(UnitOutput::Force)
-    }
-
-    /// A twitch: command 1 for 10 ms, then 0; the path held.
-    fn command_at(t: f64) -> f64 {
-        if t < 0.010 {
-            1.0
-        } else {
-            0.0
-        }
-    }
-
-    /// Tendon force over a twitch of 60 ms in steps of `h`, sampled every
-    /// `every` steps.
-    fn twitch(mt: &mut Unit1D, h: f64, n: usize, every: usize) -> Vec<f64> {
-        let mut out = Vec::new();
-        for i in 0..n {
-            mt.set_command(command_at(i as f64 * h));
-            mt.step(h).unwrap();
-            assert!(residual(mt).abs() <= 1e-9 * f0(mt), "{:e}", residual(mt));
-            if (i + 1) % every == 0 {
-                out.push(mt.output(UnitOutput::Force));
-            }
-        }
-        out
-    }
-
-    #[test]
-    fn a_rigid_tendon_without_pennation_is_the_plain_muscle_bit_for_bit() {
-        let mut mt = unit(0.04, 0.0, false);
-        let mut plain = Muscle1D::<FullLaw>::new(1e-3);
-        plain.length = Some(mt.path() - 0.04);
-        plain.initialize().unwrap();
-        let same = |mt: &Unit1D, plain: &Muscle1D<FullLaw>| {
-            let m = &mt.muscle;
-            assert_eq!(m.outputs, plain.outputs);
-            assert_eq!(m.jacobian, plain.jacobian);
-            assert_eq!(
-                (m.history, m.lambda, m.q),
-                (plain.history, plain.lambda, plain.q)
-            );
-            assert_eq!(mt.output(UnitOutput::Force), plain.output(Output::Force));
-            assert_eq!(
-                mt.partial(UnitOutput::Force, Input::Length),
-                plain.partial(Output::Force, Input::Length)
-            );
-            assert_eq!(
-                mt.partial(UnitOutput::Force, Input::Activation),
-                plain.partial(Output::Force, Input::Activation)
-            );
-        };
-        same(&mt, &plain);
-        for i in 0..80 {
-            let t = i as f64 * 1e-3;
-            let path = 0.091 + 0.01 * (30.0 * t).sin();
-            mt.set_command(command_at(t));
-            plain.command = command_at(t);
-            mt.set_path(path);
-            plain.length = Some(path - 0.04);
-            mt.step(1e-3).unwrap();
-            plain.step(1e-3).unwrap();
-            same(&mt, &plain);
-        }
-    }
-
-    #[test]
-    fn a_compliant_tendon_converges_to_the_rigid_one() {
-        for alpha0 in [0.0, 0.4] {
-            let rigid = twitch(&mut unit(0.04, alpha0, false), 1e-3, 60, 1);
-            let mut errs = Vec::new();
-            for eps0 in [1e-2, 1e-3, 1e-4] {
-                let f = twitch(&mut unit(eps0, alpha0, true), 1e-3, 60, 1);
-                let mut mt = unit(eps0, alpha0, true);
-                let err = f
-                    .iter()
-                    .zip(&rigid)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max);
-                errs.push(err / f0(&mt));
-                mt.step(1e-3).unwrap();
-            }
-            eprintln!(
-                "α0 = {alpha0}: max |F_T − F_T,rigid| / F0 over ε0 = 1e-2, 1e-3, 1e-4: {errs:?}"
-            );
-            // First order in ε0.
-            assert!(errs[2] < 1e-3, "{errs:?}");
-            assert!(
-                errs[0] / errs[1] > 5.0 && errs[1] / errs[2] > 5.0,
-                "{errs:?}"
-            );
-        }
-    }
-
-    #[test]
-    fn the_equilibrium_holds_after_every_step_at_every_stiffness() {
-        for eps0 in [0.1, 0.04, 1e-2, 1e-3, 1e-4] {
-            for alpha0 in [0.0, 0.4, 1.0] {
-                let mut mt = unit(eps0, alpha0, true);
-                // A twitch (checked inside), then an activated pull.
-                twitch(&mut mt, 1e-3, 30, 1);
-                for i in 0..50 {
-                    mt.set_command(1.0);
-                    mt.set_path(mt.path() + 2e-5 * (i as f64).min(10.0));
-                    mt.step(1e-3).unwrap();
-                    assert!(residual(&mt).abs() <= 1e-9 * f0(&mt), "{:e}", residual(&mt));
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn a_slack_tendon_leaves_the_muscle_at_zero_force() {
-        for command in [0.0, 1.0] {
-            for alpha0 in [0.0, 0.4] {
-                let mut mt = unit(0.04, alpha0, true);
-                // The path drops to 3 cm short of the fibres at L0 and slack
-                // tendon, in one step; then held.
-                let slack = mt.path() - 0.03;
-                for _ in 0..50 {
-                    mt.set_command(command);
-                    mt.set_path(slack);
-                    mt.step(1e-3).unwrap();
-                    assert_eq!(mt.output(UnitOutput::Force), 0.0);
-                    assert!(mt.output(UnitOutput::TendonStrain) <= 0.0);
-                    let f_m = mt.muscle.output(Output::Force);
-                    assert!(f_m.abs() <= 1e-9 * f0(&mt), "{f_m:e}");
-                    assert_eq!(mt.output(UnitOutput::Stiffness), 0.0);
-                }
-                // Initialized slack.
-                let mut fresh = unit(0.04, alpha0, true);
-                fresh.set_path(slack);
-                fresh.set_command(command);
-                fresh.muscle.activation_dynamics = false;
-                fresh.initialize().unwrap();
-                assert_eq!(fresh.output(UnitOutput::Force), 0.0);
-            }
-        }
-    }
-
-    #[test]
-    fn a_path_jump_in_one_step_is_solved() {
-        for eps0 in [0.04, 1e-4] {
-            for command in [0.0, 1.0] {
-                let mut mt = unit(eps0, 0.4, true);
-                mt.set_command(command);
-                for _ in 0..20 {
-                    mt.step(1e-3).unwrap();
-                }
-                // +10 % of L0 in one step, then back.
-                for jump in [0.005, -0.005, -0.02] {
-                    mt.set_path(mt.path() + jump);
-                    mt.step(1e-3).unwrap();
-                    assert!(residual(&mt).abs() <= 1e-9 * f0(&mt), "{:e}", residual(&mt));
-                    assert!(mt.output(UnitOutput::Force).is_finite());
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn the_largest_angle_is_a_discard_that_changes_nothing() {
-        for compliant in [false, true] {
-            let mut mt = unit(0.04, 1.0, compliant);
-            mt.set_command(1.0);
-            mt.step(1e-3).unwrap();
-            let before = mt.clone();
-            // Shorter than the tendon's slack length plus the fibres'
-            // projection at the largest angle.
-            mt.set_path(0.04 + 0.5 * mt.unit().pennation.min_projection());
-            let r = mt.step(1e-3);
-            if compliant {
-                // The muscle can go to zero force above the largest angle:
-                // only a rigid tendon runs into it here.
-                if r.is_ok() {
-                    continue;
-                }
-            }
-            let e = r.unwrap_err();
-            assert!(format!("{e:?}").contains("pennation"), "{e:?}");
-            assert_eq!(mt.muscle.outputs, before.muscle.outputs);
-            assert_eq!(mt.outputs, before.outputs);
-            assert_eq!(mt.committed_path, before.committed_path);
-        }
-    }
-
-    #[test]
-    fn force_partials_match_finite_differences_of_the_step_map() {
-        for (eps0, alpha0, compliant) in [
-            (0.04, 0.0, true),
-            (0.04, 0.4, true),
-            (1e-4, 0.4, true),
-            (0.04, 0.4, false),
-        ] {
-            let mut mt = unit(eps0, alpha0, compliant);
-            mt.set_command(0.6);
-            for _ in 0..5 {
-                mt.step(1e-3).unwrap();
-            }
-            let (path, command) = (mt.path() + 1e-4, 0.8);
-            let run = |path: f64, command: f64| {
-                let mut m = mt.clone();
-                m.set_path(path);
-                m.set_command(command);
-                m.step(1e-3).unwrap();
-                m
-            };
-            let at = run(path, command);
-            let d = 1e-7;
-            for out in [
-                UnitOutput::Force,
-                UnitOutput::FibreLength,
-                UnitOutput::TendonStrain,
-                UnitOutput::PennationAngle,
-                UnitOutput::Stress,
-            ] {
-                let fd = (run(path + d, command).output(out) - run(path - d, command).output(out))
-                    / (2.0 * d);
-                let an = at.partial(out, Input::Length);
-                // The differences' round-off floor: ~1e-9 of the output.
-                let scale = an.abs().max(1e-9 * at.output(out).abs() / d);
-                assert!(
-                    (fd - an).abs() <= 1e-4 * scale,
-                    "{out:?} d/dℓ: {fd} vs {an}"
-                );
-                let du = 1e-4;
-                let fd = (run(path, command + du).output(out)
-                    - run(path, command - du).output(out))
-                    / (2.0 * du);
-                let an = at.partial(out, Input::Activation);
-                let scale = an.abs().max(1e-9 * at.output(out).abs() / du);
-                assert!(
-                    (fd - an).abs() <= 1e-4 * scale,
-                    "{out:?} d/du: {fd} vs {an}"
-                );
-            }
-            assert_eq!(
-                at.output(UnitOutput::Stiffness),
-                at.partial(UnitOutput::Force, Input::Length)
-            );
-        }
-    }
-}
+mod tests;

@@ -6,7 +6,9 @@
 //! end state to the inputs chained through the pieces. Whether a piece is
 //! accepted and how much the next grows or a rejected one shrinks is
 //! [`crate::step_control`]'s policy on [`piece_error`]'s estimate; this file
-//! only places the pieces on the grid. Paths without a CE–SEE solve: a
+//! only places the pieces on the grid. A piece's end stretch is prescribed
+//! (linear over the step) or, through the [`PieceEnd`] hook, solved with the
+//! piece (the musculotendon unit's equilibrium). Paths without a CE–SEE solve: a
 //! muscle without the contractile element (`solve_passive`) and
 //! a step at rest (`solve_rest`), bit for bit the general path's
 //! one piece.
@@ -141,8 +143,9 @@ pub(crate) trait PieceEnd {
     /// Whether the end stretch depends on the muscle's response.
     const COUPLED: bool;
     /// The stretch at the end of the piece from fraction `from` to `frac`
-    /// of the step (`last`: the step's end), starting at `lambda`: the
-    /// prescribed one, or (coupled) the solve's first guess.
+    /// of the step (`last`: the step's end): the prescribed one from the
+    /// step's start stretch `lambda`, or (coupled) the solve's first guess
+    /// from the piece's start stretch `lambda`.
     fn stretch(&self, lambda: f64, from: f64, frac: f64, last: bool) -> f64;
     /// A coupled piece: the piece's law `law(λ)` (its uniaxial solve ending
     /// at λ) evaluated where the end condition holds, starting from
@@ -304,7 +307,10 @@ impl<C: Components> Muscle1D<C> {
             } else {
                 h / (1u64 << level) as f64
             };
-            let lam_j = ends.stretch(lambda0, pos as f64 / WHOLE as f64, frac, last);
+            // Prescribed: linear over the whole step; coupled: the guess
+            // from the piece's start.
+            let from = if E::COUPLED { lam } else { lambda0 };
+            let lam_j = ends.stretch(from, pos as f64 / WHOLE as f64, frac, last);
             let (a_j, da_du_j) = if last {
                 a_end
             } else {
