@@ -3,8 +3,9 @@
 //! One module per thing it computes: the parameters, the fibre curves
 //! (force-length, force-velocity, series and parallel elements), activation
 //! dynamics, the CE–SEE step solve of the Hill fibre, the isotropic matrix and
-//! volumetric energies, the 3D stress and tangent, and the 1D uniaxial
-//! reduction.
+//! volumetric energies, the 3D stress and tangent, the 1D uniaxial
+//! reduction, and the musculotendon unit around a muscle (tendon curve,
+//! pennation, their equilibrium with the muscle's force).
 
 pub mod activation;
 pub mod components;
@@ -12,11 +13,14 @@ pub mod force_length;
 pub mod force_velocity;
 pub mod hill_fibre;
 pub mod isotropic_matrix;
+pub mod musculotendon;
 pub mod parallel_element;
 pub mod params;
+pub mod pennation;
 pub mod root_finding;
 pub mod series_element;
 pub mod stress;
+pub mod tendon;
 pub mod uniaxial;
 pub mod volumetric;
 

@@ -113,10 +113,12 @@ pub const LENGTH_RANGE: Range = between(1e-5, 100.0);
 /// Valid range of a reference cross-section `area` (m²).
 pub const AREA_RANGE: Range = between(1e-10, 1.0);
 
-/// Name, default, unit, valid range and meaning of one parameter.
+/// Name, default, unit, valid range and meaning of one parameter; `Id`
+/// names the table it belongs to ([`ParamId`] for the law's,
+/// [`TendonParamId`] for the musculotendon unit's).
 #[derive(Clone, Copy, Debug)]
-pub struct ParamInfo {
-    pub id: ParamId,
+pub struct ParamInfo<Id = ParamId> {
+    pub id: Id,
     /// The name used in code and in the FMUs (MODEL_NOTES "name in code/FMU").
     pub name: &'static str,
     pub default: f64,
@@ -239,6 +241,52 @@ pub const PARAMETERS: [ParamInfo; 14] = [
         unit: "1",
         range: between(1e-3, 1e3),
         description: "SEE-to-CE rest length ratio k = L_SEE,0 / L_CE,0",
+    },
+];
+
+/// Identifies one parameter of the musculotendon unit (MODEL_NOTES
+/// "Musculotendon unit"): the tendon and the pennation in series with the
+/// muscle. Not law parameters: only a musculotendon model exposes them.
+/// (Whether the tendon is compliant is a switch, not a real parameter:
+/// `law::musculotendon::UnitParams::compliant_tendon`.)
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TendonParamId {
+    TendonSlackLength,
+    TendonStrainAtF0,
+    PennationAngle,
+}
+
+/// The musculotendon unit's parameter table (MODEL_NOTES "Musculotendon
+/// unit"): the single source of their names, defaults, units and ranges.
+/// The ranges are physical: slack lengths of the same span as `L0`
+/// ([`L0_RANGE`]); strains at F0 from a practically rigid 1e-6 to 1 (real
+/// tendons: 0.03–0.1), so that the toe and linear slopes (~1.7/ε0) stay far
+/// from overflow; pennation angles at `L0` from 0 to 1 rad (57°, within
+/// MODEL_NOTES' [0°, 60°); real muscles stay below ~35°).
+pub const TENDON_PARAMETERS: [ParamInfo<TendonParamId>; 3] = [
+    ParamInfo {
+        id: TendonParamId::TendonSlackLength,
+        name: "tendon_slack_length",
+        default: 0.05,
+        unit: "m",
+        range: L0_RANGE,
+        description: "Tendon slack length L_TS: the tendon carries force when longer",
+    },
+    ParamInfo {
+        id: TendonParamId::TendonStrainAtF0,
+        name: "tendon_strain_at_F0",
+        default: 0.04,
+        unit: "1",
+        range: between(1e-6, 1.0),
+        description: "Tendon strain eps0 at the maximum isometric force F0 (Thelen 2003)",
+    },
+    ParamInfo {
+        id: TendonParamId::PennationAngle,
+        name: "pennation_angle",
+        default: 0.0,
+        unit: "rad",
+        range: between(0.0, 1.0),
+        description: "Pennation angle alpha0 of the fibres at fibre length L0 (constant thickness)",
     },
 ];
 

@@ -33,16 +33,20 @@
 //! initialization and the step's entry point; [`step`] the step map and its
 //! error control; [`predictor`] the solvers' starting points; [`outputs`]
 //! the outputs and their partial derivatives; [`error`] what goes wrong and
-//! its messages.
+//! its messages; [`musculotendon`] the muscle in series with a tendon at a
+//! pennation angle, driven by its path length (its pieces' ends solved
+//! through the step map's [`step::PieceEnd`] hook).
 
 pub mod error;
 pub mod muscle;
+pub mod musculotendon;
 pub mod outputs;
 pub mod predictor;
 pub mod step;
 
 pub use error::{Discard, SetupError};
 pub use muscle::{Muscle1D, DEFAULT_AREA, DEFAULT_L0};
+pub use musculotendon::{Musculotendon1D, UnitOutput};
 pub use outputs::{Input, Jacobian, Output, N_OUT};
 pub use predictor::Predictor;
 pub use step::{piece_error, StepStatistics};

@@ -216,13 +216,7 @@ impl<C: Components> Muscle1D<C> {
                 "length at the end of the step, length + h * der(length) = {end_length}, must be finite and > 0"
             )));
         }
-        // Kept only when the step is accepted (no activation without the CE).
-        let decay = if C::CONTRACTILE {
-            Some(Decay::for_step(self.decay, self.params.s, h))
-        } else {
-            None
-        };
-        let a_end = self.level(h, decay.map_or(1.0, |d| d.value));
+        let (decay, a_end) = self.end_level(h);
         let lambda = end_length / self.l0;
         if !(self.stretch_range.0..=self.stretch_range.1).contains(&lambda) {
             return Err(Discard::Unsolvable(
@@ -235,8 +229,34 @@ impl<C: Components> Muscle1D<C> {
             da_du,
             sens,
             stats,
+            ..
         } = self.solve_step(h, lambda, a_end)?;
         let (outputs, jacobian) = self.evaluate(&u, a, sens, da_du);
+        Self::check_outputs(&outputs, &jacobian, lambda, h)?;
+        self.finish_step(&u, a, h, decay, outputs, jacobian, stats);
+        Ok(())
+    }
+
+    /// The decay e^(−S h) of a step of length `h` (kept only when the step
+    /// is accepted; none without the CE) and the level at its end with
+    /// ∂a/∂u ([`Self::level`]).
+    pub(super) fn end_level(&self, h: f64) -> (Option<Decay>, (f64, f64)) {
+        let decay = if C::CONTRACTILE {
+            Some(Decay::for_step(self.decay, self.params.s, h))
+        } else {
+            None
+        };
+        (decay, self.level(h, decay.map_or(1.0, |d| d.value)))
+    }
+
+    /// A step's outputs and partials are finite, else the discard that says
+    /// so (at end stretch `lambda`, step `h`).
+    pub(super) fn check_outputs(
+        outputs: &[f64; N_OUT],
+        jacobian: &Jacobian,
+        lambda: f64,
+        h: f64,
+    ) -> Result<(), Discard> {
         if outputs.iter().any(|x| !x.is_finite()) {
             return Err(Discard::Unsolvable(format!(
                 "non-finite output at stretch {lambda}"
@@ -248,18 +268,33 @@ impl<C: Components> Muscle1D<C> {
                  (a step this short cannot be resolved)"
             )));
         }
-        self.commit(&u, a, Some(h), outputs, jacobian, stats);
+        Ok(())
+    }
+
+    /// Commit a solved step of length `h` with its decay; the input
+    /// derivatives are spent.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn finish_step(
+        &mut self,
+        u: &Uniaxial,
+        a: f64,
+        h: f64,
+        decay: Option<Decay>,
+        outputs: [f64; N_OUT],
+        jacobian: Jacobian,
+        stats: StepStatistics,
+    ) {
+        self.commit(u, a, Some(h), outputs, jacobian, stats);
         self.decay = decay;
         // Input derivatives hold for one step (they describe the input at the
         // communication point they were set at).
         self.command_rate = 0.0;
         self.length_rate = 0.0;
-        Ok(())
     }
 
     /// Make a solved state the committed one.
     /// `h` is the step length (`None` at initialization).
-    fn commit(
+    pub(super) fn commit(
         &mut self,
         u: &Uniaxial,
         a: f64,

@@ -6,7 +6,9 @@
 //! end state to the inputs chained through the pieces. Whether a piece is
 //! accepted and how much the next grows or a rejected one shrinks is
 //! [`crate::step_control`]'s policy on [`piece_error`]'s estimate; this file
-//! only places the pieces on the grid. Paths without a CE–SEE solve: a
+//! only places the pieces on the grid. A piece's end stretch is prescribed
+//! (linear over the step) or, through the [`PieceEnd`] hook, solved with the
+//! piece (the musculotendon unit's equilibrium). Paths without a CE–SEE solve: a
 //! muscle without the contractile element (`solve_passive`) and
 //! a step at rest (`solve_rest`), bit for bit the general path's
 //! one piece.
@@ -121,13 +123,74 @@ pub(crate) fn combine(terms: &[(&Sensitivity, f64)]) -> Sensitivity {
 
 /// A solved step (`Muscle1D::solve_step`): the state at its end, the level
 /// and ∂a/∂u there, the total sensitivities of the end state with respect to
-/// the inputs (activation, length), and the solver counts.
+/// the inputs (activation, length), the end stretch's total derivatives
+/// with respect to them, and the solver counts.
 pub(crate) struct Stepped {
     pub(crate) u: Uniaxial,
     pub(crate) a: f64,
     pub(crate) da_du: f64,
     pub(crate) sens: [Sensitivity; N_IN],
+    pub(crate) dlambda: [f64; N_IN],
     pub(crate) stats: StepStatistics,
+}
+
+/// Where a piece of the step ends: the hook that lets a step's end stretch
+/// be solved with the muscle's response (the musculotendon unit's
+/// equilibrium, [`super::musculotendon`]) instead of prescribed. The plain
+/// muscle's [`Prescribed`] end is not coupled: its pieces are exactly the
+/// step map of the module docs.
+pub(crate) trait PieceEnd {
+    /// Whether the end stretch depends on the muscle's response.
+    const COUPLED: bool;
+    /// The stretch at the end of the piece from fraction `from` to `frac`
+    /// of the step (`last`: the step's end): the prescribed one from the
+    /// step's start stretch `lambda`, or (coupled) the solve's first guess
+    /// from the piece's start stretch `lambda`.
+    fn stretch(&self, lambda: f64, from: f64, frac: f64, last: bool) -> f64;
+    /// A coupled piece: the piece's law `law(λ)` (its uniaxial solve ending
+    /// at λ) evaluated where the end condition holds, starting from
+    /// `guess`; the last evaluation is the one returned.
+    fn solve<F>(&self, frac: f64, last: bool, guess: f64, law: F) -> Result<Solved, Discard>
+    where
+        F: FnMut(f64) -> Result<Uniaxial, Discard>;
+}
+
+/// A coupled piece's end ([`PieceEnd::solve`]): the solve there, and how its
+/// stretch moves with the length input at fixed muscle response
+/// (`dlambda_dinput`, d λ/d input) and with the muscle's axial Kirchhoff
+/// stress at fixed stretch (`dlambda_dtau`, d λ/d τ11).
+pub(crate) struct Solved {
+    pub(crate) u: Uniaxial,
+    pub(crate) dlambda_dinput: f64,
+    pub(crate) dlambda_dtau: f64,
+}
+
+/// The plain muscle's end: the stretch moves linearly to `lambda_end`.
+pub(crate) struct Prescribed(pub(crate) f64);
+
+impl PieceEnd for Prescribed {
+    const COUPLED: bool = false;
+
+    #[inline(always)]
+    fn stretch(&self, lambda: f64, _from: f64, frac: f64, last: bool) -> f64 {
+        if last {
+            self.0
+        } else {
+            lambda + (self.0 - lambda) * frac
+        }
+    }
+
+    #[inline(always)]
+    fn solve<F>(&self, _frac: f64, _last: bool, guess: f64, mut law: F) -> Result<Solved, Discard>
+    where
+        F: FnMut(f64) -> Result<Uniaxial, Discard>,
+    {
+        Ok(Solved {
+            u: law(guess)?,
+            dlambda_dinput: 0.0,
+            dlambda_dtau: 0.0,
+        })
+    }
 }
 
 /// Solver counts of the last completed step (or of the initialization), for
@@ -177,13 +240,32 @@ impl<C: Components> Muscle1D<C> {
         lambda_end: f64,
         a_end: (f64, f64),
     ) -> Result<Stepped, Discard> {
-        if !C::CONTRACTILE {
+        self.solve_step_to(h, &Prescribed(lambda_end), a_end)
+    }
+
+    /// [`Self::solve_step`] with the pieces' ends given by `ends`: for a
+    /// coupled end ([`PieceEnd::COUPLED`]) each piece's end stretch is
+    /// solved with the piece's law, and the chain rule through the piece
+    /// takes its stretch's dependence on the inputs, the level and the
+    /// history (d λ_j = dλ/d input + dλ/dτ11 · ∂τ11/∂(a, λm) at fixed λ).
+    /// A coupled end takes the general path (no shortcuts: those are for
+    /// a prescribed stretch).
+    #[inline(always)]
+    pub(crate) fn solve_step_to<E: PieceEnd>(
+        &self,
+        h: f64,
+        ends: &E,
+        a_end: (f64, f64),
+    ) -> Result<Stepped, Discard> {
+        let lambda_end = ends.stretch(self.lambda, 0.0, 1.0, true);
+        if !C::CONTRACTILE && !E::COUPLED {
             return self.solve_passive(h, lambda_end);
         }
         // At rest — command 0 (not rising) and level 0, so the level is 0
         // throughout the step — the CE carries nothing (σ0 a f_λ = 0): no
         // CE–SEE solve and an error estimate of exactly 0, hence one piece.
-        if self.rest_shortcut.0
+        if !E::COUPLED
+            && self.rest_shortcut.0
             && self.command == 0.0
             && self.command_rate <= 0.0
             && self.activation_level == 0.0
@@ -225,11 +307,10 @@ impl<C: Components> Muscle1D<C> {
             } else {
                 h / (1u64 << level) as f64
             };
-            let lam_j = if last {
-                lambda_end
-            } else {
-                lambda0 + (lambda_end - lambda0) * frac
-            };
+            // Prescribed: linear over the whole step; coupled: the guess
+            // from the piece's start.
+            let from = if E::COUPLED { lam } else { lambda0 };
+            let lam_j = ends.stretch(from, pos as f64 / WHOLE as f64, frac, last);
             let (a_j, da_du_j) = if last {
                 a_end
             } else {
@@ -254,17 +335,35 @@ impl<C: Components> Muscle1D<C> {
                 lambda_s: ls_guess.max(1.0),
                 lambda_m: hist.lambda_m,
             };
-            let u = solve_uniaxial_with::<C>(
-                p,
-                lam_j,
-                a_j,
-                &start,
-                FibreRate::Step { h: hs_j },
-                q_guess,
-            )
-            .map_err(|e| {
-                Discard::Unsolvable(self.unsolvable_step(lam_j * self.l0, lam_j - lam, hs_j, &e.0))
-            })?;
+            let law = |lam_j: f64| {
+                solve_uniaxial_with::<C>(
+                    p,
+                    lam_j,
+                    a_j,
+                    &start,
+                    FibreRate::Step { h: hs_j },
+                    q_guess,
+                )
+                .map_err(|e| {
+                    Discard::Unsolvable(self.unsolvable_step(
+                        lam_j * self.l0,
+                        lam_j - lam,
+                        hs_j,
+                        &e.0,
+                    ))
+                })
+            };
+            let Solved {
+                u,
+                dlambda_dinput,
+                dlambda_dtau,
+            } = ends.solve(frac, last, lam_j, law)?;
+            // A coupled end settles where its condition holds.
+            let (lam_j, dl) = if E::COUPLED {
+                (u.lambda, u.lambda - lam)
+            } else {
+                (lam_j, dl)
+            };
             stats.lateral_iterations = stats.lateral_iterations.saturating_add(u.iterations);
             stats.ce_iterations = stats.ce_iterations.saturating_add(u.ce_iterations);
             // Without the CE the step map has no history: one piece, exact.
@@ -299,11 +398,19 @@ impl<C: Components> Muscle1D<C> {
             // through its stretch (d λ_j/dL = frac/L0), its level (∂a_j/∂u)
             // and the history's CE stretch (`chain`).
             self.check_fv_branch(&u)?;
-            let drivers = [[da_du_j, 0.0], [0.0, frac / self.l0]];
+            let mut drivers = [[da_du_j, 0.0], [0.0, frac / self.l0]];
             let mut sens = [Sensitivity::default(); 2];
             for c in [IN_ACTIVATION, IN_LENGTH] {
                 if c == IN_ACTIVATION && !C::ACTIVATION_INPUT {
                     continue; // no activation input: no such partial
+                }
+                if E::COUPLED {
+                    // The end stretch moves with the input, and with the
+                    // muscle's stress through the level and the history.
+                    let dtau =
+                        u.d_dactivation.tau11 * drivers[c][0] + u.d_dhistory.tau11 * chain[c];
+                    let dinput = if c == IN_LENGTH { dlambda_dinput } else { 0.0 };
+                    drivers[c][1] = dinput + dlambda_dtau * dtau;
                 }
                 sens[c] = combine(&[
                     (&u.d_dactivation, drivers[c][0]),
@@ -319,6 +426,7 @@ impl<C: Components> Muscle1D<C> {
                     a: a_j,
                     da_du: da_du_j,
                     sens,
+                    dlambda: [drivers[0][1], drivers[1][1]],
                     stats,
                 });
             }
@@ -401,6 +509,7 @@ impl<C: Components> Muscle1D<C> {
             a: 0.0,
             da_du: 0.0,
             sens,
+            dlambda: [0.0, 1.0 / self.l0],
             stats,
         })
     }
@@ -437,6 +546,7 @@ impl<C: Components> Muscle1D<C> {
             a: 0.0,
             da_du,
             sens,
+            dlambda: [0.0, 1.0 / self.l0],
             stats,
         })
     }
