@@ -45,8 +45,8 @@ use faer::sparse::linalg::cholesky::{
     SymmetricOrdering,
 };
 use faer::sparse::linalg::solvers::{Llt, Lu, SymbolicLlt, SymbolicLu};
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
+use faer::sparse::linalg::{LuError, SupernodalThreshold};
+use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{MatMut, Side};
 use nalgebra::{Matrix3, SMatrix};
 
@@ -334,7 +334,8 @@ impl Pattern {
     /// The constrained values: prescribed rows and columns zeroed, their
     /// diagonal 1; `Err` on a non-finite entry.
     fn constrained(&self, values: &[f64]) -> Result<Vec<f64>, String> {
-        let mut constrained = values.to_vec();
+        let mut constrained = try_filled(values.len(), 0.0, "the constrained tangent")?;
+        constrained.copy_from_slice(values);
         for &s in &self.bc_off_diagonal {
             constrained[s] = 0.0;
         }
@@ -379,9 +380,12 @@ impl Pattern {
             })
             .clone()?;
         let n = symbolic.nrows();
-        let mut values = vec![0.0; symbolic.len_val()];
-        let mut subdiagonal = vec![0.0; n];
-        let (mut forward, mut inverse) = (vec![0usize; n], vec![0usize; n]);
+        // Fallible: the factor is the FE muscle's largest allocation
+        // (crate::fe::memory), and its failure an error, not an abort.
+        let mut values = try_filled(symbolic.len_val(), 0.0, "the LBLT factor")?;
+        let mut subdiagonal = try_filled(n, 0.0, "the LBLT factor")?;
+        let mut forward = try_filled(n, 0usize, "the LBLT factor")?;
+        let mut inverse = try_filled(n, 0usize, "the LBLT factor")?;
         let par = faer::get_global_parallelism();
         let mut scratch = MemBuffer::try_new(
             symbolic.factorize_numeric_intranode_lblt_scratch::<f64>(par, Default::default()),
@@ -427,8 +431,13 @@ impl Pattern {
             })
             .clone()?;
         let mat = SparseColMatRef::new(self.symbolic_ref(), constrained);
-        let lu = Lu::try_new_with_symbolic(symbolic, mat)
-            .map_err(|e| format!("the tangent is singular (LU: {e:?})"))?;
+        // faer's LU allocates fallibly; its failure is an error here.
+        let lu = Lu::try_new_with_symbolic(symbolic, mat).map_err(|e| match e {
+            LuError::Generic(FaerError::OutOfMemory) => {
+                "out of memory for the LU factor of the tangent".to_string()
+            }
+            e => format!("the tangent is singular (LU: {e:?})"),
+        })?;
         Ok(Factor::Lu(Arc::new(lu)))
     }
 
@@ -538,6 +547,21 @@ impl Factor {
             Factor::Lu(_) => FactorKind::Lu,
         }
     }
+}
+
+/// A vector of `n` copies of `value`, its memory reserved fallibly: `Err`
+/// naming `what` and the size when the allocator refuses (an error the FMU
+/// returns, where `vec!` would abort the host process).
+pub fn try_filled<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>, String> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| {
+        format!(
+            "out of memory for {what}: {n} values of {} bytes",
+            std::mem::size_of::<T>()
+        )
+    })?;
+    v.resize(n, value);
+    Ok(v)
 }
 
 #[cfg(test)]
@@ -720,5 +744,14 @@ mod tests {
             .err()
             .expect("a singular tangent is refused");
         assert!(e.contains("singular"), "{e}");
+    }
+
+    /// An allocation the allocator cannot serve is an error naming what it
+    /// was for, not an abort of the process.
+    #[test]
+    fn an_impossible_allocation_is_an_error() {
+        let e = try_filled(usize::MAX / 16, 0.0f64, "the LBLT factor").unwrap_err();
+        assert!(e.contains("out of memory for the LBLT factor"), "{e}");
+        assert_eq!(try_filled(3, 1.5, "x").unwrap(), vec![1.5; 3]);
     }
 }

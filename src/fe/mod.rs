@@ -7,11 +7,13 @@
 //! tangent and the predictor's record), [`newton`] (one (sub)step's
 //! equilibrium), [`muscle`] (time stepping, initialization, error control)
 //! and [`step_map`] (one communication step, its outputs and their
-//! derivatives). Nothing here knows of FMI.
+//! derivatives); [`memory`] estimates a mesh's peak memory before anything
+//! is built. Nothing here knows of FMI.
 
 pub mod assembly;
 pub mod discretization;
 pub mod element;
+pub mod memory;
 pub mod mesh;
 pub mod muscle;
 pub mod newton;

@@ -239,10 +239,39 @@ const OUTPUTS: [(Output, Row<Var>); N_QUANTITIES] = [
         ),
     ),
 ];
-/// Both gradings in their declared range, the message naming the parameter.
-fn check_grading(g: Grading) -> Result<(), ModelError> {
-    check_range("axial_grading", g.axial, GRADING_RANGE)?;
-    check_range("radial_grading", g.radial, GRADING_RANGE)
+/// The mesh parameters of a setup ([`Model::initialize`]) or of a restored
+/// state's muscle, checked in one place before any mesh is built: the counts and the fibre layout in their
+/// declared ranges, both gradings in theirs (the message naming the
+/// parameter), and the mesh's estimated peak memory within the FE muscle's
+/// budget ([`crate::fe::memory`]).
+fn check_mesh(
+    n_axial: i32,
+    n_radial: i32,
+    fibre_layout: i32,
+    grading: Grading,
+) -> Result<(Resolution, FibreLayout), ModelError> {
+    let in_range = |v: i32, (lo, hi): (i32, i32)| (lo..=hi).contains(&v);
+    if !(in_range(n_axial, N_AXIAL_RANGE)
+        && in_range(n_radial, N_RADIAL_RANGE)
+        && in_range(fibre_layout, (0, 1)))
+    {
+        return Err(ModelError(format!(
+            "bad mesh {n_axial} x {n_radial}, fibre layout {fibre_layout}"
+        )));
+    }
+    check_range("axial_grading", grading.axial, GRADING_RANGE)?;
+    check_range("radial_grading", grading.radial, GRADING_RANGE)?;
+    let resolution = Resolution {
+        n_axial: n_axial as usize,
+        n_radial: n_radial as usize,
+    };
+    crate::fe::memory::check(resolution, crate::fe::memory::BUDGET).map_err(ModelError)?;
+    let layout = if fibre_layout == 1 {
+        FibreLayout::Meridian
+    } else {
+        FibreLayout::Axial
+    };
+    Ok((resolution, layout))
 }
 
 /// The full `HillMuscleFE` (the scene `fmu_build/scenes/hill_muscle_fe.toml`).
@@ -302,7 +331,6 @@ impl<S: Scene> HillFEModel<S> {
         check_range("L0", self.l0, L0_RANGE)?;
         check_range("area", self.area, AREA_RANGE)?;
         check_unit_interval("initial_activation", self.initial_activation)?;
-        check_grading(self.grading)?;
         check_range("length", self.length(), LENGTH_RANGE)?;
         Ok(())
     }
@@ -389,6 +417,7 @@ impl<S: Scene> Model for HillFEModel<S> {
     /// (with `activation_dynamics = false`: at the command).
     fn initialize(&mut self) -> Result<(), ModelError> {
         self.check_setup()?;
+        check_mesh(self.n_axial, self.n_radial, self.fibre_layout, self.grading)?;
         let (a, da_du) = if self.activation_dynamics {
             (self.initial_activation, 0.0)
         } else {

@@ -7,7 +7,7 @@
 
 use std::sync::Arc;
 
-use super::{all_variables, check_grading, HillFEModel, Var, N_AXIAL_RANGE, N_RADIAL_RANGE};
+use super::{all_variables, check_mesh, HillFEModel, Var};
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::muscle::{Muscle, MAX_SUBSTEPS};
 use crate::fe::newton::RESIDUAL_TOLERANCE;
@@ -321,8 +321,9 @@ fn restore<S: Scene>(s: HillFEState) -> Result<HillFEModel<S>, String> {
     Ok(m)
 }
 
-/// The mesh a committed state claims, its parameters each in range and its
-/// size that of the state's positions and histories; nothing is built.
+/// The mesh a committed state claims, its parameters checked as a setup's
+/// ([`check_mesh`]: ranges, gradings, memory estimate) and its size that of
+/// the state's positions and histories; nothing is built.
 fn claimed_mesh(c: &CommittedState) -> Result<(Resolution, Grading, FibreLayout), String> {
     check_range("L0", c.l0, L0_RANGE).map_err(|e| e.0)?;
     check_range("area", c.area, AREA_RANGE).map_err(|e| e.0)?;
@@ -330,21 +331,8 @@ fn claimed_mesh(c: &CommittedState) -> Result<(Resolution, Grading, FibreLayout)
         axial: c.axial_grading,
         radial: c.radial_grading,
     };
-    check_grading(grading).map_err(|e| e.0)?;
-    let in_range = |v: i32, (lo, hi): (i32, i32)| (lo..=hi).contains(&v);
-    if !(in_range(c.n_axial, N_AXIAL_RANGE)
-        && in_range(c.n_radial, N_RADIAL_RANGE)
-        && in_range(c.fibre_layout, (0, 1)))
-    {
-        return Err(format!(
-            "bad mesh {} x {}, fibre layout {}",
-            c.n_axial, c.n_radial, c.fibre_layout
-        ));
-    }
-    let resolution = Resolution {
-        n_axial: c.n_axial as usize,
-        n_radial: c.n_radial as usize,
-    };
+    let (resolution, layout) =
+        check_mesh(c.n_axial, c.n_radial, c.fibre_layout, grading).map_err(|e| e.0)?;
     // The fusiform mesh's node and element counts (crate::fe::mesh).
     let (nodes, elements) = (resolution.nodes(), resolution.tets());
     if c.x.len() != 3 * nodes {
@@ -365,11 +353,6 @@ fn claimed_mesh(c: &CommittedState) -> Result<(Resolution, Grading, FibreLayout)
             ));
         }
     }
-    let layout = if c.fibre_layout == 1 {
-        FibreLayout::Meridian
-    } else {
-        FibreLayout::Axial
-    };
     Ok((resolution, grading, layout))
 }
 
@@ -686,24 +669,35 @@ mod tests {
     }
 
     /// A crafted state that claims a 96 × 16 mesh with a few kilobytes of
-    /// positions is refused naming the sizes, before the mesh is built (it
-    /// would take seconds and 1.4 GB); the message also names a count
-    /// prefix larger than the bytes that follow.
+    /// positions is refused before the mesh is built (it would take seconds
+    /// and 1.4 GB), naming the mesh's memory estimate and the budget; one
+    /// that claims a mesh within the budget is refused naming the sizes; the
+    /// message also names a count prefix larger than the bytes that follow.
     #[test]
     fn a_mesh_larger_than_its_state_is_refused_before_it_is_built() {
         let m = stepped();
         let mut bytes = Vec::new();
         m.serialize(&mut bytes);
-        let mut s: HillFEState = decode_from(MODEL, &mut bytes.as_slice()).unwrap();
-        let c = s.committed.as_mut().unwrap();
-        c.n_axial = 96;
-        c.n_radial = 16;
-        let mut crafted = Vec::new();
-        encode_onto(&s, &mut crafted);
+        let claiming = |n_axial: i32, n_radial: i32| {
+            let mut s: HillFEState = decode_from(MODEL, &mut bytes.as_slice()).unwrap();
+            let c = s.committed.as_mut().unwrap();
+            c.n_axial = n_axial;
+            c.n_radial = n_radial;
+            let mut crafted = Vec::new();
+            encode_onto(&s, &mut crafted);
+            crafted
+        };
+        let crafted = claiming(96, 16);
         let started = std::time::Instant::now();
         let e = HillFE::deserialize(&mut crafted.as_slice()).unwrap_err();
         assert!(
-            e.0.contains("position values for a 96 x 16 mesh of"),
+            e.0.contains("a 96 x 16 mesh needs an estimated") && e.0.contains("memory budget"),
+            "{}",
+            e.0
+        );
+        let e = HillFE::deserialize(&mut claiming(48, 8).as_slice()).unwrap_err();
+        assert!(
+            e.0.contains("position values for a 48 x 8 mesh of"),
             "{}",
             e.0
         );

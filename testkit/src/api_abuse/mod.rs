@@ -18,7 +18,10 @@
 //! generated operations and their expansion into calls), `oracle` (the
 //! expected outcome of a call), `driver` (a sequence on the primary, its twin
 //! and the snapshots, every property checked), `strategies` (proptest
-//! strategies), and the tests: `properties`, `deterministic`, `regressions`.
+//! strategies), and the tests: `properties`, `deterministic`, `regressions`,
+//! `hostile` (well-formed hostile calls: meshes over the memory budget,
+//! forged stored outputs, extreme input derivatives, time that does not
+//! advance).
 //!
 //! # What is generated
 //!
@@ -244,6 +247,7 @@ macro_rules! ensure {
 mod calls;
 mod deterministic;
 mod driver;
+mod hostile;
 mod ops;
 mod oracle;
 mod pool;
@@ -255,6 +259,7 @@ mod subject;
 pub(crate) use calls::*;
 pub use deterministic::*;
 pub(crate) use driver::*;
+pub use hostile::*;
 pub(crate) use ops::*;
 pub(crate) use oracle::*;
 pub use pool::*;
@@ -292,7 +297,11 @@ macro_rules! harness_tests {
             a_step_to_an_infinite_time_is_refused,
             deserialized_state_with_non_finite_time_is_refused,
             deserialized_state_with_an_impossible_step_status_is_refused,
-            setup_experiment_with_a_non_finite_tolerance_is_refused
+            setup_experiment_with_a_non_finite_tolerance_is_refused,
+            meshes_over_the_memory_budget_are_refused_at_once,
+            forged_stored_outputs_are_refused,
+            extreme_input_derivatives_keep_the_activation_level_in_range,
+            a_step_that_does_not_advance_the_time_is_refused
         );
     };
     (@each $sub:ty, $attrs:tt, $name:ident $(, $rest:ident)*) => {
