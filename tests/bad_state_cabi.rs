@@ -223,6 +223,52 @@ fn restored_outputs_must_be_those_of_the_fe_muscle() {
     );
 }
 
+/// The outputs to forge (name, value) from an instance and a forged force.
+type Forge<M> = fn(&Inst<M>, f64) -> Vec<(&'static str, f64)>;
+
+/// In a stepping state no parameter can have changed since the outputs
+/// were committed: a force 1.5 times the committed one, with the outputs
+/// `forge` gives from it so that they agree with each other and with some
+/// area in its range (checksum recomputed), is refused as not that of the
+/// muscle with its parameters; the instance keeps its state.
+fn forged_force_of_a_stepping_state_is_refused<M: Model>(ints: &[(&str, i32)], forge: Forge<M>) {
+    let f = Inst::<M>::stepped(ints);
+    let bytes = f.state_bytes();
+    let mut forged = bytes.clone();
+    for (name, value) in forge(&f, 1.5 * f.real("force")) {
+        forged = replaced(&forged, &f.real(name).to_le_bytes(), &value.to_le_bytes());
+    }
+    let (status, log) = f.restore(&forged);
+    assert_eq!(status, fmi2Error, "{log}");
+    assert!(log.contains("output force"), "{log}");
+    assert_eq!(f.state_bytes(), bytes, "the instance changed");
+}
+
+#[test]
+fn a_stepping_1d_state_has_the_force_of_its_area() {
+    forged_force_of_a_stepping_state_is_refused::<Hill1D>(&[], |_, force| vec![("force", force)]);
+}
+
+#[cfg(feature = "fe")]
+#[test]
+#[cfg_attr(debug_assertions, ignore = "unoptimized FE: cargo test --release")]
+fn a_stepping_fe_state_has_the_force_of_its_muscle() {
+    forged_force_of_a_stepping_state_is_refused::<HillFE>(
+        &[("n_axial", 6), ("n_radial", 1)],
+        |f, force| {
+            let stress = force / f.real("area");
+            let cauchy = 1.5 * f.real("cauchy_stress");
+            let passive = stress - f.real("active_stress");
+            vec![
+                ("force", force),
+                ("stress", stress),
+                ("cauchy_stress", cauchy),
+                ("passive_stress", passive),
+            ]
+        },
+    );
+}
+
 /// `HillActuator1D` compiles b = 23.46 in: a state with b = 30 (checksum
 /// recomputed) is refused naming the constant.
 #[test]

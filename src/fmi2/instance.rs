@@ -550,6 +550,11 @@ pub fn decode_state<M: Model>(guid: &str, data: &[u8]) -> Result<Snapshot<M>, St
             fmi_state.name()
         ));
     }
+    if stepping {
+        model
+            .check_stepping_outputs()
+            .map_err(|msg| format!("malformed model state: {msg}"))?;
+    }
     Ok(Snapshot {
         model,
         layer: LayerState {

@@ -199,6 +199,15 @@ pub trait Model: Clone + Send + 'static {
         true
     }
 
+    /// For a deserialized FMU state whose layer is stepping, where no
+    /// parameter can have changed since the outputs were committed: `Err`
+    /// naming the first output that the model's parameters and committed
+    /// state do not give. Models whose outputs are all checked at decoding
+    /// keep the default.
+    fn check_stepping_outputs(&self) -> Result<(), String> {
+        Ok(())
+    }
+
     /// Append the complete model state (parameters, inputs, history) as bytes.
     fn serialize(&self, out: &mut Vec<u8>);
     /// Rebuild a model from bytes written by [`Model::serialize`]; advances `input`.

@@ -228,6 +228,10 @@ impl<S: Scene> Model for Hill1DModel<S> {
         }
     }
 
+    fn check_stepping_outputs(&self) -> Result<(), String> {
+        state::check_force(&self.muscle)
+    }
+
     fn serialize(&self, out: &mut Vec<u8>) {
         state::encode(self, out);
     }

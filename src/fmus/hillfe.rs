@@ -506,6 +506,10 @@ impl<S: Scene> Model for HillFEModel<S> {
         })
     }
 
+    fn check_stepping_outputs(&self) -> Result<(), String> {
+        state::check_law_outputs(self)
+    }
+
     fn serialize(&self, out: &mut Vec<u8>) {
         state::encode(self, out);
     }

@@ -259,6 +259,25 @@ fn check_committed<C: Components>(u: &Muscle1D<C>) -> Result<(), String> {
     Ok(())
 }
 
+/// The force exactly the committed nominal stress times the area
+/// (`Muscle1D::evaluate`). Only for a stepping instance: before, the area
+/// may have been set since the outputs were committed ([`check_committed`]
+/// allows any area in its range).
+pub(super) fn check_force<C: Components>(u: &Muscle1D<C>) -> Result<(), String> {
+    let (force, stress) = (
+        u.outputs[Output::Force as usize],
+        u.outputs[Output::Stress as usize],
+    );
+    let value = stress * u.area;
+    if force.to_bits() != value.to_bits() {
+        return Err(format!(
+            "output force = {force} is not stress {stress} times the area {} ({value})",
+            u.area
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::{Hill1D, Var, DEFAULT_L0};

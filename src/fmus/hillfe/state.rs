@@ -614,6 +614,41 @@ fn check_outputs<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(), Stri
     Ok(())
 }
 
+/// The outputs that depend on the law's parameters — the force and its
+/// stresses, the active stress — recomputed from the restored positions with
+/// the current parameters (to the tolerance of [`check_outputs`]). Only for
+/// a stepping instance: in instantiated or initialization mode a parameter
+/// may have been set since the outputs were committed.
+pub(super) fn check_law_outputs<S: Scene>(m: &HillFEModel<S>) -> Result<(), String> {
+    let Some(c) = &m.state else {
+        return Ok(());
+    };
+    let (mu, d) = (&c.muscle, &c.muscle.disc);
+    let ev = d
+        .evaluate(
+            &m.params,
+            &mu.x,
+            c.last.activation,
+            &c.last.start,
+            c.last.rate(),
+            false,
+        )
+        .map_err(|e| format!("the restored positions: {e}"))?;
+    let recomputed: Outputs = outputs(d, d.area, mu.length, &ev, c.last.activation);
+    for (name, q) in [
+        ("force", Quantity::Force),
+        ("active_stress", Quantity::ActiveStress),
+    ] {
+        let (stored, value) = (m.outputs[q as usize], recomputed[q as usize]);
+        if (stored - value).abs() > 1e-9 * value.abs().max(1.0) || !stored.is_finite() {
+            return Err(format!(
+                "output {name} = {stored} is not that of the restored muscle with its parameters ({value})"
+            ));
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::{HillFE, Output, DEFAULT_L0};
