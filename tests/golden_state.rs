@@ -125,3 +125,14 @@ fn fe_scene_states_are_unchanged() {
         ],
     );
 }
+
+/// `HillMusculotendon1D` after the same fixed run (its `length` input the
+/// path, starting at the rest path).
+#[test]
+fn musculotendon_scene_state_is_unchanged() {
+    use hill_muscle::fmus::musculotendon1d::MusculotendonModel;
+    check(
+        &[golden::<MusculotendonModel<HillMusculotendon1D>>(40)],
+        &[("HillMusculotendon1D", 747, 0x88dc3f1a58083505)],
+    );
+}

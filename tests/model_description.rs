@@ -193,3 +193,44 @@ fn the_actuator_declares_stiffness_in_newton_per_metre() {
     #[cfg(feature = "fe")]
     assert_eq!(guid::<HillFE>(), "{960da1e2-71eb-810e-af1f-77c357108c29}");
 }
+
+/// `HillMusculotendon1D`: its table follows the FMI 2.0 rules, its committed
+/// modelDescription is the generator's output, the `length` input (the path)
+/// starts at the rest path L_TS + L0 cos(alpha0), the angles are in rad, and
+/// its GUID is pinned (an unintended interface change shows here).
+#[test]
+fn the_musculotendon_model_description_is_committed_and_valid() {
+    use hill_muscle::fmi2::{Model, VarType};
+    use hill_muscle::fmus::musculotendon1d::Musculotendon;
+    validate_table::<Musculotendon>().expect("HillMusculotendon1D follows FMI 2.0 rules");
+    let xml = model_description::<Musculotendon>();
+    assert!(xml.contains(&format!("guid=\"{}\"", guid::<Musculotendon>())));
+    check_committed("HillMusculotendon1D", &xml);
+    let vars = Musculotendon::variables();
+    let start = |name: &str| match vars.iter().find(|v| v.name == name).unwrap().ty {
+        VarType::Real { start, .. } => start.unwrap(),
+        _ => panic!("{name} is not Real"),
+    };
+    assert_eq!(
+        start("length"),
+        start("tendon_slack_length") + start("L0") * start("pennation_angle").cos()
+    );
+    assert!(Musculotendon::info().units.iter().any(|u| u.name == "rad"));
+    for name in ["pennation", "pennation_angle"] {
+        let v = vars.iter().find(|v| v.name == name).unwrap();
+        assert!(
+            matches!(
+                v.ty,
+                VarType::Real {
+                    unit: Some("rad"),
+                    ..
+                }
+            ),
+            "{name}"
+        );
+    }
+    assert_eq!(
+        guid::<Musculotendon>(),
+        "{a3d0017f-7000-8312-9bbe-7628b8c25047}"
+    );
+}

@@ -36,6 +36,7 @@ pub fn rust_source(type_name: &str, spec: &SceneSpec) -> String {
     let v = match spec.variant {
         Variant::OneD => "OneD",
         Variant::Fe => "Fe",
+        Variant::Musculotendon1D => "Musculotendon1D",
     };
     let _ = writeln!(s, "        variant: crate::scene::Variant::{v},");
     let _ = writeln!(s, "        components: crate::scene::Components {{");
@@ -87,6 +88,9 @@ fn model_type(type_name: &str, spec: &SceneSpec) -> String {
     match spec.variant {
         Variant::OneD => format!("crate::fmus::hill1d::Hill1DModel<{type_name}>"),
         Variant::Fe => format!("crate::fmus::hillfe::HillFEModel<{type_name}>"),
+        Variant::Musculotendon1D => {
+            format!("crate::fmus::musculotendon1d::MusculotendonModel<{type_name}>")
+        }
     }
 }
 

@@ -72,6 +72,15 @@ fn describe(spec: &SceneSpec) -> (String, String) {
             &spec.variables(fmus::hillfe::all_variables()),
             &format!("{}{}", fmus::hillfe::FE_HTML, fmus::hill1d::LAW_HTML),
         ),
+        Variant::Musculotendon1D => describe_table(
+            &fmus::musculotendon1d::info_for(spec),
+            &fmus::musculotendon1d::scene_variables(spec),
+            &format!(
+                "{}{}",
+                fmus::musculotendon1d::MT_HTML,
+                fmus::hill1d::LAW_HTML
+            ),
+        ),
     }
 }
 
@@ -122,7 +131,7 @@ fn build_library(spec: &SceneSpec, root: &Path) -> Result<PathBuf, String> {
         fs::write(&gen, &text).map_err(|e| format!("{}: {e}", gen.display()))?;
     }
     let features = match spec.variant {
-        Variant::OneD => "export-scene",
+        Variant::OneD | Variant::Musculotendon1D => "export-scene",
         Variant::Fe => "export-scene,fe",
     };
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
@@ -220,6 +229,9 @@ fn run() -> Result<(), String> {
                 match spec.variant {
                     Variant::OneD => spec.variables(fmus::hill1d::all_variables()).len(),
                     Variant::Fe => spec.variables(fmus::hillfe::all_variables()).len(),
+                    Variant::Musculotendon1D => {
+                        fmus::musculotendon1d::scene_variables(&spec).len()
+                    }
                 }
             );
         }

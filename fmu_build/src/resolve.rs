@@ -12,18 +12,19 @@
 
 use hill_muscle::fe::mesh::{Grading, Resolution, LEVELS, LUMPED, LUMPED_GRADING};
 use hill_muscle::fmi2::{Causality, ScalarVariable, VarType};
-use hill_muscle::fmus::{hill1d, hillfe};
+use hill_muscle::fmus::{hill1d, hillfe, musculotendon1d};
 use hill_muscle::law::params::Bound;
 use hill_muscle::scene::{Components, Inputs, SceneSpec, Setting, Value, Variant};
 
 /// The variants a scene can name, with their names in scene files.
-pub const VARIANTS: [Variant; 2] = [Variant::OneD, Variant::Fe];
+pub const VARIANTS: [Variant; 3] = [Variant::OneD, Variant::Fe, Variant::Musculotendon1D];
 
 /// The name of `variant` in scene files.
 pub fn variant_name(variant: Variant) -> &'static str {
     match variant {
         Variant::OneD => "1d",
         Variant::Fe => "fe",
+        Variant::Musculotendon1D => "musculotendon_1d",
     }
 }
 
@@ -121,6 +122,7 @@ fn catalogue(variant: Variant) -> Vec<(&'static str, Causality, VarType)> {
     match variant {
         Variant::OneD => rows(hill1d::all_variables()),
         Variant::Fe => rows(hillfe::all_variables()),
+        Variant::Musculotendon1D => rows(musculotendon1d::all_variables()),
     }
 }
 
@@ -249,14 +251,12 @@ impl Draft {
         for name in &self.outputs {
             match output_names.iter().find(|n| **n == name.as_str()) {
                 None => {
-                    let other = match variant {
-                        Variant::OneD => catalogue(Variant::Fe),
-                        Variant::Fe => catalogue(Variant::OneD),
-                    };
-                    if other
-                        .iter()
-                        .any(|(n, cau, _)| n == name && *cau == Causality::Output)
-                    {
+                    let elsewhere = VARIANTS.iter().filter(|v| **v != variant).any(|v| {
+                        catalogue(*v)
+                            .iter()
+                            .any(|(n, cau, _)| n == name && *cau == Causality::Output)
+                    });
+                    if elsewhere {
                         errors.push(format!(
                             "output '{name}' is not available in the {} variant",
                             variant_name(variant)
@@ -332,13 +332,19 @@ impl Draft {
         // The mesh.
         let mut mesh_level: Option<MeshLevel> = None;
         match (variant, &self.mesh) {
-            (Variant::OneD, Some(_)) | (Variant::OneD, None) if self.mesh_constant.is_some() => {
-                errors.push("[fe] mesh_constant: the 1d variant has no mesh".into());
+            (Variant::OneD | Variant::Musculotendon1D, _) if self.mesh_constant.is_some() => {
+                errors.push(format!(
+                    "[fe] mesh_constant: the {} variant has no mesh",
+                    variant_name(variant)
+                ));
             }
-            (Variant::OneD, Some(m)) => {
-                errors.push(format!("[fe] mesh = {m:?}: the 1d variant has no mesh"));
+            (Variant::OneD | Variant::Musculotendon1D, Some(m)) => {
+                errors.push(format!(
+                    "[fe] mesh = {m:?}: the {} variant has no mesh",
+                    variant_name(variant)
+                ));
             }
-            (Variant::OneD, None) => {}
+            (Variant::OneD | Variant::Musculotendon1D, None) => {}
             (Variant::Fe, m) => {
                 let name = m.as_deref().unwrap_or("lumped");
                 match MESH_LEVELS.iter().find(|l| l.name == name) {

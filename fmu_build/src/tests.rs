@@ -32,6 +32,7 @@ fn every_shipped_scene_resolves_and_the_required_ones_are_there() {
         "HillActivatedFE",
         "HillIsometric1D",
         "HillActuator1D",
+        "HillMusculotendon1D",
     ] {
         assert!(ids.contains(&id), "{id} missing from {ids:?}");
     }

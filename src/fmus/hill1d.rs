@@ -14,7 +14,7 @@ pub use crate::muscle1d::{piece_error, Output, StepStatistics, DEFAULT_AREA, DEF
 use crate::muscle1d::{Discard, Input, Muscle1D, N_OUT};
 use crate::scene::{LawOf, Scene};
 
-mod state;
+pub(crate) mod state;
 
 variables! {
     /// A variable of `HillMuscle1D`, in table order: the law's parameters,
@@ -157,7 +157,7 @@ impl<S: Scene> Hill1DModel<S> {
 /// The message of a discarded step of scene `S`: the muscle's own, or for a
 /// CE–SEE root on an f_v branch the scene leaves out, the branch and the
 /// scene's component that would include it.
-fn discard_message<S: Scene>(d: Discard) -> String {
+pub(crate) fn discard_message<S: Scene>(d: Discard) -> String {
     match d {
         Discard::Unsolvable(msg) => msg,
         Discard::AbsentFvBranch { rate, sigma_see } => {

@@ -4,4 +4,5 @@ pub mod common;
 pub mod hill1d;
 #[cfg(feature = "fe")]
 pub mod hillfe;
+pub mod musculotendon1d;
 pub mod table;

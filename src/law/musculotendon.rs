@@ -90,6 +90,13 @@ impl UnitParams {
         Ok(())
     }
 
+    /// The path length with the fibres at rest length `l0` and the tendon at
+    /// its slack length, L_TS + L0 cos α0 (MODEL_NOTES "Musculotendon
+    /// unit"): a musculotendon model's path input until one is set.
+    pub fn rest_path(&self, l0: f64) -> f64 {
+        self.tendon_slack_length + l0 * self.pennation_angle.cos()
+    }
+
     /// Every parameter in its range; the first offender in table order.
     pub fn validate(&self) -> Result<(), ParamError> {
         let mut copy = *self;

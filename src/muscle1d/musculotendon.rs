@@ -228,9 +228,8 @@ impl<C: Components> Musculotendon1D<C> {
 
     /// The path length input (L_TS + L0 cos α0 until set).
     pub fn path(&self) -> f64 {
-        self.path.unwrap_or(
-            self.unit.tendon_slack_length + self.muscle.l0 * self.unit.pennation_angle.cos(),
-        )
+        self.path
+            .unwrap_or_else(|| self.unit.rest_path(self.muscle.l0))
     }
 
     /// Set the path length input (m) for the next step.

@@ -41,6 +41,9 @@ pub enum Variant {
     OneD,
     /// The lumped 3D finite-element muscle (`crate::fe`).
     Fe,
+    /// The 1D muscle in series with a tendon at a pennation angle, driven
+    /// by its path length (MODEL_NOTES "Musculotendon unit").
+    Musculotendon1D,
 }
 
 /// The components of the law a scene includes (MODEL_NOTES "Energy and

@@ -18,7 +18,7 @@ use crate::scene::Scene;
 wire_struct! {
     /// The state's fields in byte order (the format tests/golden_state.rs
     /// pins).
-    pub(super) struct Hill1DState {
+    pub(crate) struct Hill1DState {
         /// The law's parameters, in [`PARAMETERS`] order.
         params: Vec<f64>,
         l0: f64,
@@ -52,8 +52,13 @@ const MODEL: &str = "HillMuscle1D";
 
 /// [`Model::serialize`] of the 1D model.
 pub(super) fn encode<S: Scene>(m: &Hill1DModel<S>, out: &mut Vec<u8>) {
-    let u = &m.muscle;
-    let state = Hill1DState {
+    encode_onto(&muscle_state(&m.muscle), out);
+}
+
+/// The serialized state of the 1D muscle `u` (also the muscle's part of the
+/// musculotendon model's state).
+pub(crate) fn muscle_state<C: Components>(u: &Muscle1D<C>) -> Hill1DState {
+    Hill1DState {
         params: PARAMETERS.iter().map(|i| u.params.get(i.id)).collect(),
         l0: u.l0,
         area: u.area,
@@ -76,8 +81,7 @@ pub(super) fn encode<S: Scene>(m: &Hill1DModel<S>, out: &mut Vec<u8>) {
         ce_rate: u.ce_rate,
         adaptive_substeps: u.adaptive_substeps,
         substep_tolerance: u.substep_tolerance,
-    };
-    encode_onto(&state, out);
+    }
 }
 
 /// [`Model::deserialize`] of the 1D model: decode, then
@@ -89,6 +93,20 @@ pub(super) fn decode<S: Scene>(input: &mut &[u8]) -> Result<Hill1DModel<S>, Mode
 
 /// The model of a decoded state, if some call sequence reaches it.
 fn restore<S: Scene>(s: Hill1DState) -> Result<Hill1DModel<S>, String> {
+    let mut m = Hill1DModel::<S>::new();
+    restore_muscle(s, &mut m.muscle)?;
+    check_scene_constants(&S::SPEC, &all_variables(), &m)?;
+    Ok(m)
+}
+
+/// The 1D muscle `u` (a new model's) set to the decoded state `s`, if some
+/// call sequence reaches it: every value in its range and the stored
+/// outputs those of the committed state ([`check_committed`]). The scene's
+/// constants are the caller's to check.
+pub(crate) fn restore_muscle<C: Components>(
+    s: Hill1DState,
+    u: &mut Muscle1D<C>,
+) -> Result<(), String> {
     let Hill1DState {
         params,
         l0,
@@ -113,8 +131,6 @@ fn restore<S: Scene>(s: Hill1DState) -> Result<Hill1DModel<S>, String> {
         adaptive_substeps,
         substep_tolerance,
     } = s;
-    let mut m = Hill1DModel::<S>::new();
-    let u = &mut m.muscle;
     if params.len() != PARAMETERS.len() {
         return Err(format!(
             "{} parameters, expected {}",
@@ -192,8 +208,7 @@ fn restore<S: Scene>(s: Hill1DState) -> Result<Hill1DModel<S>, String> {
     }
     check_committed(u)?;
     u.refresh_stretch_range();
-    check_scene_constants(&S::SPEC, &all_variables(), &m)?;
-    Ok(m)
+    Ok(())
 }
 
 /// The stored outputs and step data of `u` exactly those its committed state
