@@ -698,9 +698,10 @@ impl Discretization {
         // The mixed iteration (natural test, then damped Newton), and when
         // both fail the same from the same start with the volume ratios'
         // pressures (module docs, "Pressures"), sharing the start's tangent.
+        let order = [Pressures::Unknowns, Pressures::VolumeRatios];
         let mut tried = spent;
         let mut failures = Vec::new();
-        for pressures in [Pressures::Unknowns, Pressures::VolumeRatios] {
+        for pressures in order {
             for (mode, merit) in [
                 (Mode::Reuse, Merit::Natural),
                 (Mode::Fresh, Merit::Residual),
@@ -723,8 +724,8 @@ impl Discretization {
             }
         }
         Err(match failures.as_slice() {
-            [.., unknowns, _, volume_ratios] => {
-                format!("{volume_ratios} (with the pressures as unknowns: {unknowns})")
+            [.., first, _, second] => {
+                format!("{second} (with the {} first: {first})", order[0].name())
             }
             _ => failures.concat(),
         })
@@ -762,6 +763,16 @@ enum Pressures {
     /// Those of a reused tangent until it is formed afresh, then
     /// [`Pressures::Unknowns`].
     OnRefresh,
+}
+
+impl Pressures {
+    /// How an error message names them.
+    fn name(self) -> &'static str {
+        match self {
+            Pressures::VolumeRatios => "volume ratios' pressures",
+            Pressures::Unknowns | Pressures::OnRefresh => "pressures as unknowns",
+        }
+    }
 }
 
 /// Whether [`Discretization::iterate`] reuses its tangent.

@@ -264,6 +264,37 @@ fn isometric_initialization_at_full_activation_relaxes_to_the_equilibrium() {
     assert!(f > 0.5 * p.sigma0 * d.mean_area(), "force {f} N");
 }
 
+/// The extremes of the activated initialization, level 1 at 0.7 L0 and
+/// 1.3 L0 on a graded 8 × 2 mesh (D = 1e-9): each ends in the isometric
+/// equilibrium (the rate-free problem's Newton correction with a tangent
+/// formed there within the tolerance).
+#[test]
+fn isometric_initialization_at_extreme_lengths_is_an_equilibrium() {
+    let p = Params::default();
+    let d = specimen(8, 2);
+    for stretch in [0.7, 1.3] {
+        let (m, s) = Muscle::isometric(d.clone(), &p, 0.05 * stretch, 1.0).unwrap();
+        let r = Advance {
+            muscle: m.clone(),
+            solution: s,
+            start: m.history.clone(),
+            rate: FibreRate::Isometric,
+            activation: 1.0,
+            iterations: 0,
+            factorizations: 0,
+            residuals: 0,
+            substeps: 1,
+            pieces: vec![],
+        };
+        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        let tol = 10.0 * RESIDUAL_TOLERANCE;
+        assert!(
+            dx < tol && df < tol,
+            "{stretch} L0: |dx|/L0 {dx:e}, dF {df:e}"
+        );
+    }
+}
+
 /// An activation jump 0 → 1 within one 10 ms step (no activation
 /// dynamics: the level is 1 over the whole step) at rest length, which
 /// drives the contractile elements to their maximum shortening speed
