@@ -119,9 +119,9 @@ fn fe_scene_states_are_unchanged() {
             golden::<HillFEModel<HillActivatedFE>>(12),
         ],
         &[
-            ("HillMuscleFE", 200514, 0x9a672b4d3d9f8661),
-            ("HillPassiveFE", 200514, 0x6bda0749230b4ab4),
-            ("HillActivatedFE", 200514, 0x9a672b4d3d9f8661),
+            ("HillMuscleFE", 205546, 0x315a2b4bb3a8743a),
+            ("HillPassiveFE", 205546, 0x6f8d5031636c8ad4),
+            ("HillActivatedFE", 205546, 0x315a2b4bb3a8743a),
         ],
     );
 }

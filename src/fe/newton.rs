@@ -47,20 +47,29 @@
 //!
 //! # Pressures
 //!
-//! When the displacement formulation's Newton fails on a step, it is tried
-//! once more carrying the nodal pressures p_a as unknowns beside the
-//! positions — Newton's method on the mixed problem (forces with pressures
-//! p, constraint U_J'(J_a) = p_a), condensed. As U_J = (J − 1)²/D is
-//! quadratic the condensed right-hand side is the displacement residual;
-//! the iteration differs only in the pressure of the tangent's
-//! initial-stress part: p ← p + α (U_J'(J) + U_J'' ΔJ(Δx) − p), the
-//! linearised constraint's ([`Discretization::linearised_pressures`]),
-//! instead of U_J'(J(x + αΔx)), which holds 2/D times the second-order
-//! volume change of the correction, spoils the Newton direction after a
-//! large correction and shrinks the convergence radius with D. It is the
-//! fallback: on ordinary small steps the displacement iteration converges
-//! as fast or faster. The equilibrium is the same (at convergence
+//! Newton's method on the mixed problem carries the nodal pressures p_a
+//! as unknowns beside the positions (forces with pressures p, constraint
+//! U_J'(J_a) = p_a), condensed. As U_J = (J − 1)²/D is quadratic the
+//! condensed right-hand side is the displacement residual; the iteration
+//! differs only in the pressure of the tangent's initial-stress part:
+//! p ← p + α (U_J'(J) + U_J'' ΔJ(Δx) − p), the linearised constraint's
+//! ([`Discretization::linearised_pressures`]), instead of U_J'(J(x + αΔx)),
+//! which holds 2/D times the second-order volume change of the correction,
+//! spoils the Newton direction after a large correction and shrinks the
+//! convergence radius with D. The equilibrium is the same (at convergence
 //! p = U_J'(J) to the tolerance).
+//!
+//! A step reuses its tangent with the pressures it was formed with; when it
+//! forms a tangent afresh, it switches to the mixed iteration. Its
+//! pressures then start from the last equilibria's U_J'(J), extrapolated
+//! with the predictor's weights (the pressures vary smoothly in time) —
+//! not from U_J'(J) at the predicted positions: a sum of increments that
+//! each kept the volume preserves it only to first order, and 2/D times
+//! that second-order volume change (a 1 % strain increment: ~10⁵ Pa) would
+//! make the fresh tangent useless; large steps then took tens of Newton
+//! iterations. Without a last step (`Self::robust`), the mixed iteration
+//! from the linearised response comes first (its pressures the linearised
+//! problem's), the displacement iteration is the fallback.
 //!
 //! [`CONTRACTION_STEPS`]: crate::fe::tangent::CONTRACTION_STEPS
 
@@ -331,10 +340,39 @@ impl Discretization {
             cache,
             Mode::Reuse,
             Merit::Natural,
-            Pressures::VolumeRatios,
+            Pressures::OnRefresh,
             trend.contraction,
+            Some((trend, weights)),
             spent,
         )
+    }
+
+    /// The nodal pressures U_J'(J_a) of the last equilibria x_n, x_{n−1}, …
+    /// (x_{n−i} = x_{n−i+1} − Δx_i from the trend's increments) extrapolated
+    /// to the new step with the predictor's weights: p_n + Σ c_i (p_{n−i+1}
+    /// − p_{n−i}).
+    fn extrapolated_pressures(
+        &self,
+        p: &Params,
+        x_n: &[f64],
+        trend: &Trend,
+        weights: &[f64],
+    ) -> Result<Vec<f64>, String> {
+        let zero = vec![0.0; x_n.len()];
+        let mut x = x_n.to_vec();
+        let mut later = self.linearised_pressures(p, &x, &zero)?.0;
+        let mut guess = later.clone();
+        for (inc, &c) in trend.increments.iter().zip(weights) {
+            for (xi, d) in x.iter_mut().zip(&inc.dx) {
+                *xi -= d;
+            }
+            let earlier = self.linearised_pressures(p, &x, &zero)?.0;
+            for ((g, l), e) in guess.iter_mut().zip(&later).zip(&earlier) {
+                *g += c * (l - e);
+            }
+            later = earlier;
+        }
+        Ok(guess)
     }
 
     /// −R on the free dofs, 0 on the prescribed ones.
@@ -368,7 +406,10 @@ impl Discretization {
     /// α is halved down to [`MIN_LINE_SEARCH`]. Convergence:
     /// [`Self::converged`]; at the first correction with the contraction
     /// `known` of the reused tangent from earlier steps (module docs,
-    /// "Convergence at the predictor").
+    /// "Convergence at the predictor"). With [`Pressures::OnRefresh`] the
+    /// pressures become unknowns when the tangent is first formed here,
+    /// predicted from `history` (the trend and the predictor's weights)
+    /// when given.
     #[allow(clippy::too_many_arguments)]
     fn iterate(
         &self,
@@ -380,8 +421,10 @@ impl Discretization {
         merit: Merit,
         pressures: Pressures,
         known: Option<Contraction>,
+        history: Option<(&Trend, &[f64])>,
         spent: &mut Counts,
     ) -> Result<Solved, String> {
+        let predictor = x.clone();
         let (activation, start, rate) = (input.activation, input.start, input.rate);
         let form = |x: &[f64], pressure: &Option<Vec<f64>>| {
             Arc::new(TangentCache::new(Anchor {
@@ -395,7 +438,7 @@ impl Discretization {
         // With the pressures as unknowns (module docs, "Pressures"): from
         // the last equilibrium's, linearised over the predictor's increment.
         let mut pressure = match pressures {
-            Pressures::VolumeRatios => None,
+            Pressures::VolumeRatios | Pressures::OnRefresh => None,
             Pressures::Unknowns => {
                 let increment: Vec<f64> = x.iter().zip(input.x).map(|(a, b)| a - b).collect();
                 Some(self.linearised_pressures(p, input.x, &increment)?.1)
@@ -447,6 +490,29 @@ impl Discretization {
             }
             iterations += 1;
             if (refresh || mode == Mode::Fresh) && !fresh {
+                // Switching to the pressures as unknowns (module docs,
+                // "Pressures"): the last equilibria's extrapolated like the
+                // positions, linearised over the iterate's move from the
+                // predictor; without a trend, the last equilibrium's
+                // linearised over the whole increment.
+                if pressures == Pressures::OnRefresh && pressure.is_none() {
+                    let from = |a: &[f64], b: &[f64]| -> Vec<f64> {
+                        a.iter().zip(b).map(|(a, b)| a - b).collect()
+                    };
+                    pressure = Some(match history {
+                        Some((trend, weights)) => {
+                            let guess = self.extrapolated_pressures(p, input.x, trend, weights)?;
+                            let (at, moved) =
+                                self.linearised_pressures(p, &predictor, &from(&x, &predictor))?;
+                            guess
+                                .iter()
+                                .zip(at.iter().zip(&moved))
+                                .map(|(g, (a, m))| g + m - a)
+                                .collect()
+                        }
+                        None => self.linearised_pressures(p, input.x, &from(&x, input.x))?.1,
+                    });
+                }
                 cache = form(&x, &pressure);
                 contraction = None;
                 incoming = false;
@@ -601,7 +667,8 @@ impl Discretization {
     /// positions is indefinite when the level rises: fibre tension not yet
     /// balanced by pressure.) From it, `Self::iterate` with the natural
     /// test, and when that fails the damped Newton method (the solver before
-    /// tangent reuse).
+    /// tangent reuse): with the pressures as unknowns, then with the volume
+    /// ratios' (module docs, "Pressures").
     fn robust(
         &self,
         p: &Params,
@@ -628,12 +695,13 @@ impl Discretization {
             *xi += d + v * dl;
         }
         self.apply_prescribed(&mut x, input.length);
-        // The displacement iteration (natural test, then damped Newton), and
-        // when both fail the same from the same start with the pressures as
-        // unknowns (module docs, "Pressures"), sharing the start's tangent.
+        // The mixed iteration (natural test, then damped Newton), and when
+        // both fail the same from the same start with the volume ratios'
+        // pressures (module docs, "Pressures"), sharing the start's tangent.
+        let order = [Pressures::Unknowns, Pressures::VolumeRatios];
         let mut tried = spent;
         let mut failures = Vec::new();
-        for pressures in [Pressures::VolumeRatios, Pressures::Unknowns] {
+        for pressures in order {
             for (mode, merit) in [
                 (Mode::Reuse, Merit::Natural),
                 (Mode::Fresh, Merit::Residual),
@@ -647,6 +715,7 @@ impl Discretization {
                     merit,
                     pressures,
                     None,
+                    None,
                     &mut tried,
                 ) {
                     Ok(s) => return Ok(s),
@@ -655,8 +724,8 @@ impl Discretization {
             }
         }
         Err(match failures.as_slice() {
-            [.., volume_ratios, _, unknowns] => {
-                format!("{unknowns} (with the volume ratios' pressures: {volume_ratios})")
+            [.., first, _, second] => {
+                format!("{second} (with the {} first: {first})", order[0].name())
             }
             _ => failures.concat(),
         })
@@ -691,6 +760,19 @@ enum Pressures {
     VolumeRatios,
     /// The iteration's own, updated by the linearised constraint.
     Unknowns,
+    /// Those of a reused tangent until it is formed afresh, then
+    /// [`Pressures::Unknowns`].
+    OnRefresh,
+}
+
+impl Pressures {
+    /// How an error message names them.
+    fn name(self) -> &'static str {
+        match self {
+            Pressures::VolumeRatios => "volume ratios' pressures",
+            Pressures::Unknowns | Pressures::OnRefresh => "pressures as unknowns",
+        }
+    }
 }
 
 /// Whether [`Discretization::iterate`] reuses its tangent.

@@ -264,6 +264,37 @@ fn isometric_initialization_at_full_activation_relaxes_to_the_equilibrium() {
     assert!(f > 0.5 * p.sigma0 * d.mean_area(), "force {f} N");
 }
 
+/// The extremes of the activated initialization, level 1 at 0.7 L0 and
+/// 1.3 L0 on a graded 8 × 2 mesh (D = 1e-9): each ends in the isometric
+/// equilibrium (the rate-free problem's Newton correction with a tangent
+/// formed there within the tolerance).
+#[test]
+fn isometric_initialization_at_extreme_lengths_is_an_equilibrium() {
+    let p = Params::default();
+    let d = specimen(8, 2);
+    for stretch in [0.7, 1.3] {
+        let (m, s) = Muscle::isometric(d.clone(), &p, 0.05 * stretch, 1.0).unwrap();
+        let r = Advance {
+            muscle: m.clone(),
+            solution: s,
+            start: m.history.clone(),
+            rate: FibreRate::Isometric,
+            activation: 1.0,
+            iterations: 0,
+            factorizations: 0,
+            residuals: 0,
+            substeps: 1,
+            pieces: vec![],
+        };
+        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        let tol = 10.0 * RESIDUAL_TOLERANCE;
+        assert!(
+            dx < tol && df < tol,
+            "{stretch} L0: |dx|/L0 {dx:e}, dF {df:e}"
+        );
+    }
+}
+
 /// An activation jump 0 → 1 within one 10 ms step (no activation
 /// dynamics: the level is 1 over the whole step) at rest length, which
 /// drives the contractile elements to their maximum shortening speed
@@ -310,5 +341,58 @@ fn a_tangent_formed_again_from_its_anchor_continues_bit_for_bit() {
         assert_eq!(ra.iterations, rb.iterations);
         a = ra.muscle;
         b = rb.muscle;
+    }
+}
+
+/// Large steps (module docs of [`crate::fe::newton`], "Pressures"): a
+/// passive pull at 5 mm/s in steps of 100 ms (a 1 % strain increment per
+/// step, D = 1e-9, the stiff case) and, the extreme, the activated muscle
+/// (level 1) stretched to 1.3 L0 and released in steps of 50 ms, each step
+/// an equilibrium to the tolerance. The pull's smooth steps, once the
+/// predictor has a trend, take few Newton iterations and factorisations
+/// (with the displacement iteration's fresh tangent at the predictor they
+/// took 7–10 solves and 3 factorisations, and tens near rest).
+#[test]
+fn large_smooth_steps_take_few_newton_iterations() {
+    let p = Params::default();
+    let d = specimen(8, 2);
+    let tol = 10.0 * RESIDUAL_TOLERANCE;
+    let (rest, _) = Muscle::isometric(d.clone(), &p, 0.05, 0.0).unwrap();
+    let h = 0.1;
+    let mut m = rest.clone();
+    let (mut solves, mut factorizations) = (0, 0);
+    for k in 1..=16 {
+        let r = m
+            .advance(&p, 0.05 + 0.005 * h * k as f64, h, &|_| 0.0)
+            .unwrap();
+        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        assert!(
+            dx < tol && df < tol,
+            "pull step {k}: |dx|/L0 {dx:e}, dF {df:e}"
+        );
+        if k > 4 {
+            solves += r.iterations;
+            factorizations += r.factorizations;
+        }
+        m = r.muscle;
+    }
+    assert!(
+        solves <= 7 * 12 && factorizations <= 2 * 12,
+        "{solves} solves, {factorizations} factorisations in 12 steps of 100 ms"
+    );
+    let h = 0.05;
+    let level = |t: f64| 1.0 - (-p.s * t).exp();
+    let mut m = rest;
+    for k in 0..24 {
+        let t0 = k as f64 * h;
+        let up = (k + 1).min(23 - k.min(23)) as f64 / 12.0;
+        let l = 0.05 * (1.0 + 0.3 * up.min(1.0));
+        let r = m.advance(&p, l, h, &|tau| level(t0 + tau)).unwrap();
+        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        assert!(
+            dx < tol && df < tol,
+            "activated step {k}: |dx|/L0 {dx:e}, dF {df:e}"
+        );
+        m = r.muscle;
     }
 }
