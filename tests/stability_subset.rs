@@ -250,6 +250,8 @@ fn run_faulty<const DEFECT: u8>() -> CellResult {
         integers: &[],
         booleans: &[],
         fine_budget: FINE_BUDGET,
+        tendon_slack_length: None,
+        compared: MUSCLE_COMPARED,
     };
     run_cell(&faulty_cell(), &Watch::new(Slot::new()), &hooks)
 }
@@ -274,6 +276,8 @@ fn a_nan_output_fails_the_cell() {
             integers: &[],
             booleans: &[],
             fine_budget: FINE_BUDGET,
+            tendon_slack_length: None,
+            compared: MUSCLE_COMPARED,
         },
     );
     assert!(acceptance(&good).is_empty(), "{:?}", acceptance(&good));

@@ -34,6 +34,7 @@ type Comp = unsafe extern "C" fn(*mut c_void) -> c_int;
 type Free = unsafe extern "C" fn(*mut c_void);
 type SetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const f64) -> c_int;
 type GetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut f64) -> c_int;
+type SetBoolean = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const c_int) -> c_int;
 type GetInteger = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut c_int) -> c_int;
 type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, c_int) -> c_int;
 
@@ -47,6 +48,7 @@ pub struct Api {
     pub free: Free,
     pub set_real: SetReal,
     pub get_real: GetReal,
+    pub set_boolean: SetBoolean,
     pub get_integer: GetInteger,
     pub do_step: DoStep,
 }
@@ -103,6 +105,7 @@ pub fn load(id: &str) -> Api {
             free: sym(lib, "fmi2FreeInstance"),
             set_real: sym(lib, "fmi2SetReal"),
             get_real: sym(lib, "fmi2GetReal"),
+            set_boolean: sym(lib, "fmi2SetBoolean"),
             get_integer: sym(lib, "fmi2GetInteger"),
             do_step: sym(lib, "fmi2DoStep"),
         }
@@ -125,6 +128,17 @@ impl<'a> Instance<'a> {
     /// [`Instance::new`] with the Real parameters `(value reference, value)`
     /// set after instantiation.
     pub fn with_parameters(api: &'a Api, guid: &str, parameters: &[(c_uint, f64)]) -> Instance<'a> {
+        Self::with_settings(api, guid, parameters, &[])
+    }
+
+    /// [`Instance::with_parameters`] with also the Boolean parameters
+    /// `(value reference, value)` set after instantiation.
+    pub fn with_settings(
+        api: &'a Api,
+        guid: &str,
+        parameters: &[(c_uint, f64)],
+        booleans: &[(c_uint, bool)],
+    ) -> Instance<'a> {
         let name = CString::new("bench").unwrap();
         let guid = CString::new(guid).unwrap();
         let cb = Callbacks {
@@ -143,6 +157,14 @@ impl<'a> Instance<'a> {
             for &(vr, value) in parameters {
                 assert_eq!(
                     (api.set_real)(c, &vr, 1, &value),
+                    0,
+                    "parameter {vr} = {value}"
+                );
+            }
+            for &(vr, value) in booleans {
+                let v = c_int::from(value);
+                assert_eq!(
+                    (api.set_boolean)(c, &vr, 1, &v),
                     0,
                     "parameter {vr} = {value}"
                 );

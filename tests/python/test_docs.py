@@ -109,7 +109,8 @@ def test_no_issue_numbers_in_user_facing_pages(page):
 
 
 GENERATORS = ["examples/stability.rs", "examples/work_precision.py", "examples/paper_figures.py",
-              "examples/sweep_dask.py", "scripts/memory_check.py"]
+              "examples/sweep_dask.py", "scripts/memory_check.py",
+              "examples/musculotendon_stiffness.py"]
 """The scripts that write a results page under docs/."""
 
 

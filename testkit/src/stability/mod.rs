@@ -59,6 +59,7 @@ use hill_muscle::fmi2::{Causality, Model, ScalarVariable, VarType};
 use hill_muscle::fmus::hill1d::Hill1D;
 #[cfg(feature = "fe")]
 use hill_muscle::fmus::hillfe::HillFE;
+use hill_muscle::fmus::musculotendon1d::Musculotendon;
 use hill_muscle::law::{ParamId, Params};
 
 use crate::logger::{callbacks, LogBook};

@@ -52,7 +52,16 @@ pub struct Hooks<M> {
     /// The run at h / [`FINE_FACTOR`] is made when it costs at most this
     /// many steps.
     pub fine_budget: usize,
+    /// `Some(L_TS)`: a musculotendon unit, whose `length` input is its path:
+    /// `tendon_slack_length` is set to L_TS and the program's length
+    /// stretch · L0 is the fibres' share of the path, L_TS + stretch · L0.
+    pub tendon_slack_length: Option<f64>,
+    /// The two outputs recorded and compared with the run at h / [`FINE_FACTOR`].
+    pub compared: [&'static str; 2],
 }
+
+/// The outputs the muscles compare with the run at h / [`FINE_FACTOR`].
+pub const MUSCLE_COMPARED: [&str; 2] = ["stress", "active_stress"];
 
 /// One model of the matrix.
 pub struct ModelEntry {
@@ -79,6 +88,15 @@ pub fn models() -> Vec<ModelEntry> {
             select: |_| true,
             in_ci_subset: true,
             // Error-controlled substeps of the CE–SEE update (issue 4 §2).
+            time_error_controlled: true,
+        },
+        ModelEntry {
+            name: "HillMusculotendon1D",
+            run: |c, w| run_cell::<Musculotendon>(c, w, &MUSCULOTENDON1D_HOOKS),
+            select: |_| true,
+            in_ci_subset: true,
+            // The 1D muscle's error-controlled substeps, the tendon's
+            // equilibrium solved at the end of each.
             time_error_controlled: true,
         },
         // Only with the `fe` feature (on by default).
@@ -143,6 +161,8 @@ pub(crate) const HILLFE_HOOKS: Hooks<HillFE> = Hooks {
     integers: &[("n_axial", 6), ("n_radial", 1)],
     booleans: &[],
     fine_budget: 20_000,
+    tendon_slack_length: None,
+    compared: MUSCLE_COMPARED,
 };
 
 /// [`HILLFE_HOOKS`] with the FE's opt-in time-error control
@@ -167,7 +187,53 @@ pub(crate) const HILL1D_HOOKS: Hooks<Hill1D> = Hooks {
     integers: &[],
     booleans: &[],
     fine_budget: FINE_BUDGET,
+    tendon_slack_length: None,
+    compared: MUSCLE_COMPARED,
 };
+
+/// The 1D musculotendon unit in the matrix: its compliant tendon (the
+/// scene's strain at F0, 0.04) of slack length 4 cm in series with the 1D
+/// muscle of the cell, the muscle's solver counts, and [`unit_bounds`].
+pub(crate) const MUSCULOTENDON1D_HOOKS: Hooks<Musculotendon> = Hooks {
+    stats: Some(|m: &Musculotendon| StepStats {
+        substeps: None,
+        iterations: Some(m.last_step_evaluations()),
+        ce_iterations: None,
+    }),
+    bounds: unit_bounds,
+    integers: &[],
+    booleans: &[],
+    fine_budget: FINE_BUDGET,
+    tendon_slack_length: Some(0.04),
+    compared: ["force", "stress"],
+};
+
+/// The bounds of a musculotendon unit (MODEL_NOTES "Musculotendon unit"):
+/// the activation level in [0, 1], the tendon force not negative (a slack
+/// tendon carries nothing), a positive fibre length and a pennation angle
+/// in [0, π/2).
+pub fn unit_bounds(s: &Sample) -> Result<(), String> {
+    let (Some(a), Some(force), Some(lm), Some(angle)) = (
+        s.get("activation_level"),
+        s.get("force"),
+        s.get("fibre_length"),
+        s.get("pennation"),
+    ) else {
+        return Err("no activation_level, force, fibre_length or pennation output".into());
+    };
+    if !(0.0..=1.0).contains(&a) {
+        return Err(format!("activation_level {a} outside [0, 1]"));
+    }
+    if force < 0.0 {
+        return Err(format!("tendon force {force:e} N < 0"));
+    }
+    if lm <= 0.0 || !(0.0..std::f64::consts::FRAC_PI_2).contains(&angle) {
+        return Err(format!(
+            "fibre_length {lm} m or pennation {angle} rad outside the model"
+        ));
+    }
+    Ok(())
+}
 
 /// Relative round-off allowance of the bounds (a millionth of a percent).
 pub(crate) const BOUND_RTOL: f64 = 1e-9;

@@ -211,8 +211,20 @@ pub(crate) fn execute_inner<M: Model>(
         fmu.set_real(Params::info(id).name, v)?;
     }
     fmu.set_real("L0", l0)?;
+    // A unit's length input is its path: the tendon, then the fibres' share.
+    let offset = match checker.hooks.tendon_slack_length {
+        Some(lts) => {
+            fmu.set_real("tendon_slack_length", lts)?;
+            lts
+        }
+        None => 0.0,
+    };
+    let path = |stretch: f64| match checker.hooks.tendon_slack_length {
+        Some(_) => offset + stretch * l0,
+        None => stretch * l0,
+    };
     fmu.set_real("initial_activation", prog.initial_activation)?;
-    fmu.set_inputs(prog.command0, prog.stretch0 * l0)?;
+    fmu.set_inputs(prog.command0, path(prog.stretch0))?;
     fmu.initialize()?;
     run.names = fmu.out_names.clone();
     let idx = |name: &str| {
@@ -221,7 +233,8 @@ pub(crate) fn execute_inner<M: Model>(
             .position(|n| *n == name)
             .ok_or_else(|| format!("the model has no output {name}"))
     };
-    let (i_stress, i_active) = (idx("stress")?, idx("active_stress")?);
+    let [first, second] = checker.hooks.compared;
+    let (i_stress, i_active) = (idx(first)?, idx(second)?);
     let mut out = Vec::new();
     fmu.outputs(&mut out)?;
     check_sample(&fmu, checker, &out, prog.stretch0, run, 0.0);
@@ -255,7 +268,7 @@ pub(crate) fn execute_inner<M: Model>(
         let t = i as f64 * h;
         let (u, stretch) = signal(i, 1.0);
         fmu.save()?;
-        fmu.set_inputs(u, stretch * l0)?;
+        fmu.set_inputs(u, path(stretch))?;
         let (st, msg) = fmu.step(t, h);
         match st {
             fmi2OK => {}
@@ -279,7 +292,7 @@ pub(crate) fn execute_inner<M: Model>(
                             return Ok(Outcome::Timeout { t });
                         }
                         let (u, s) = signal(i, (k + 1) as f64 / pieces as f64);
-                        fmu.set_inputs(u, s * l0)?;
+                        fmu.set_inputs(u, path(s))?;
                         let hp = h / pieces as f64;
                         let (st, _) = fmu.step(t + k as f64 * hp, hp);
                         if st != fmi2OK {
