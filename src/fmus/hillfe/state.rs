@@ -569,18 +569,8 @@ fn check_outputs<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(), Stri
     }
     check_output("ce_stretch", o(Quantity::CeStretch), lm / v)?;
     check_output("see_stretch", o(Quantity::SeeStretch), ls / v)?;
-    let ev = d
-        .evaluate(
-            &m.params,
-            &mu.x,
-            c.last.activation,
-            &c.last.start,
-            c.last.rate(),
-            false,
-        )
-        .map_err(|e| format!("the restored positions: {e}"))?;
-    let recomputed: Outputs = outputs(d, d.area, mu.length, &ev, c.last.activation);
-    let cauchy = o(Quantity::Force) * mu.length / ev.volume;
+    let (recomputed, volume) = recompute(m, c)?;
+    let cauchy = o(Quantity::Force) * mu.length / volume;
     for (name, q, value) in [
         (
             "fibre_stretch",
@@ -614,15 +604,9 @@ fn check_outputs<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(), Stri
     Ok(())
 }
 
-/// The outputs that depend on the law's parameters — the force and its
-/// stresses, the active stress — recomputed from the restored positions with
-/// the current parameters (to the tolerance of [`check_outputs`]). Only for
-/// a stepping instance: in instantiated or initialization mode a parameter
-/// may have been set since the outputs were committed.
-pub(super) fn check_law_outputs<S: Scene>(m: &HillFEModel<S>) -> Result<(), String> {
-    let Some(c) = &m.state else {
-        return Ok(());
-    };
+/// The outputs of the restored muscle `c` with the parameters of `m` (the
+/// last step's activation level, start histories and rate), and its volume.
+fn recompute<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(Outputs, f64), String> {
     let (mu, d) = (&c.muscle, &c.muscle.disc);
     let ev = d
         .evaluate(
@@ -634,7 +618,20 @@ pub(super) fn check_law_outputs<S: Scene>(m: &HillFEModel<S>) -> Result<(), Stri
             false,
         )
         .map_err(|e| format!("the restored positions: {e}"))?;
-    let recomputed: Outputs = outputs(d, d.area, mu.length, &ev, c.last.activation);
+    let outputs = outputs(d, d.area, mu.length, &ev, c.last.activation);
+    Ok((outputs, ev.volume))
+}
+
+/// The outputs that depend on the law's parameters — the force and its
+/// stresses, the active stress — recomputed from the restored positions with
+/// the current parameters (to the tolerance of [`check_outputs`]). Only for
+/// a stepping instance: in instantiated or initialization mode a parameter
+/// may have been set since the outputs were committed.
+pub(super) fn check_law_outputs<S: Scene>(m: &HillFEModel<S>) -> Result<(), String> {
+    let Some(c) = &m.state else {
+        return Ok(());
+    };
+    let (recomputed, _) = recompute(m, c)?;
     for (name, q) in [
         ("force", Quantity::Force),
         ("active_stress", Quantity::ActiveStress),
