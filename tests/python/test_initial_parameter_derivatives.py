@@ -89,7 +89,10 @@ class Fmu:
                 self.setup[name] = value
         self.inputs = {}
         if "length" in self.var:
-            self.inputs["length"] = 1.1 * L0
+            # 10 % past the length's start: L0 for a muscle, the rest path
+            # (tendon slack length + L0 cos alpha0) for a musculotendon unit,
+            # whose tendon would otherwise be slack and carry nothing.
+            self.inputs["length"] = 1.1 * float(self.var["length"].start)
         if "activation" in self.var:
             self.inputs["activation"] = 0.5
 
@@ -167,12 +170,12 @@ def fmu(request):
 def scales(fmu, y):
     """Per output, the scale its errors are measured against: the largest
     |value| among the initial outputs of the same unit (stresses against the
-    largest stress, ...), at least 1 for dimensionless ones."""
+    largest stress, ...), at least 1 for dimensionless ones (angles too)."""
     unit = [v.declaredType.unit if v.declaredType else v.unit for v in fmu.outputs]
     out = []
     for u in unit:
         same = [abs(y[i]) for i in range(len(y)) if unit[i] == u]
-        out.append(max(max(same), 1.0 if u in (None, "1", "") else 0.0))
+        out.append(max(max(same), 1.0 if u in (None, "1", "", "rad") else 0.0))
     return np.array(out)
 
 
