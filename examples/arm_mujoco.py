@@ -122,6 +122,15 @@ canInterpolateInputs the master sets the extrapolated length instead of
 the derivative. When the FE FMU is absent the script says so and falls
 back to HillMuscle1D at the same communication step.
 
+The antagonist pair (``--pair``)
+--------------------------------
+``--pair`` runs a second model on the same elbow: a flexor (biceps long
+head) and an extensor (triceps long head), each a musculotendon FMU
+(``HillMusculotendon1D``: path length in, tendon force out) on its own
+spatial tendon, driven by a co-contraction pattern, with every scheme above,
+and compared with MuJoCo's own muscles and with rigid tendons. The model,
+the parameters and their sources, the pattern: ``arm_pair.py``.
+
 Usage::
 
     python examples/arm_mujoco.py                      # all schemes, flex_hold, H = 1 ms, plot to docs/figures
@@ -130,6 +139,8 @@ Usage::
     python examples/arm_mujoco.py --sweep --experiment hold --t-end 2.0   # stability limits, error vs wall time
     python examples/arm_mujoco.py --model fe           # HillMuscleFE, implicit, H = 10 ms
     python examples/arm_mujoco.py --model fe --scheme all --mesh n_axial=6 --mesh n_radial=1
+    python examples/arm_mujoco.py --pair               # the antagonist pair: all schemes + comparison, H = 1 ms
+    python examples/arm_mujoco.py --pair --sweep --steps-ms 1,4,16,32,64   # the pair's stability limits
 """
 
 from __future__ import annotations
@@ -801,7 +812,7 @@ def main(argv=None):
                    help="default: all (1d), implicit (fe)")
     p.add_argument("--step", type=float, default=None,
                    help=f"communication step H [s] (default: 1e-3 for 1d, FE_STEP = {FE_STEP:g} for fe)")
-    p.add_argument("--t-end", type=float, default=1.0)
+    p.add_argument("--t-end", type=float, default=None, help="simulated time [s] (default 1.0; --pair: 1.6)")
     p.add_argument("--model", choices=MODELS, default="1d")
     p.add_argument("--fmu", default=None, help="FMU path (default: dist/HillMuscle1D.fmu or dist/HillMuscleFE.fmu)")
     p.add_argument("--mesh", type=_mesh_arg, action="append", default=[], metavar="NAME=VALUE",
@@ -812,7 +823,18 @@ def main(argv=None):
     p.add_argument("--steps-ms", default=None, help="--sweep: comma-separated communication steps [ms]")
     p.add_argument("--sweep", action="store_true", help="stability limits and error vs wall time")
     p.add_argument("--out", default=str(REPO / "docs" / "figures"))
+    p.add_argument("--pair", action="store_true",
+                   help="the antagonist musculotendon pair (arm_pair.py); --fmu: the musculotendon FMU")
     args = p.parse_args(argv)
+    if args.pair:
+        import arm_pair
+
+        steps_ms = tuple(float(x) for x in args.steps_ms.split(",")) if args.steps_ms else SWEEP_STEPS_MS
+        return arm_pair.main(scheme=args.scheme or "all", step=args.step or 1e-3, fmus=args.fmu,
+                             out=args.out, sweep_steps_ms=steps_ms if args.sweep else None,
+                             t_end=args.t_end or arm_pair.T_END)
+    if args.t_end is None:
+        args.t_end = 1.0
     requested = args.model
     step = args.step if args.step is not None else (FE_STEP if requested == "fe" else 1e-3)
     scheme = args.scheme or ("implicit" if requested == "fe" else "all")
