@@ -1,6 +1,8 @@
-"""Subprocess half of test_libcosim.py: run HillMuscle1D under libcosim
-(libcosimpy), so that a crash in libcosim fails the test instead of killing
-pytest (and libcosim's and fmpy's copies of the FMU never share a process).
+"""Subprocess half of test_libcosim.py: run a muscle FMU (HillMuscle1D,
+HillMusculotendon1D: any FMU with `length` and `activation` inputs and a
+`force` output) under libcosim (libcosimpy), so that a crash in libcosim
+fails the test instead of killing pytest (and libcosim's and fmpy's copies
+of the FMU never share a process).
 
     python libcosim_worker.py FMU PLAN_JSON
 

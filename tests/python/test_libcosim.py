@@ -1,4 +1,4 @@
-"""HillMuscle1D under libcosim (libcosimpy) agrees with fmpy on the same inputs.
+"""The muscle FMUs under libcosim (libcosimpy) agree with fmpy on the same inputs.
 
 libcosim runs in a subprocess (libcosim_worker.py): a crash there fails this
 test instead of killing pytest. The worker drives `length` (and `activation`)
@@ -8,8 +8,11 @@ inputs through fmpy's FMU2Slave (set the inputs, then doStep(t_i, h)) and
 compares the traces point by point, matched on the communication time.
 
 Two input signals: a prescribed stretch-release cycle at constant activation,
-and the length and activation command that the MuJoCo elbow
-(examples/arm_mujoco.py, explicit scheme) fed the FMU in a coupled run.
+run for HillMuscle1D (its length input the muscle's length) and for
+HillMusculotendon1D (its length input the path length: the cycle pulls the
+path above its declared start), and the length and activation command that
+the MuJoCo elbow (examples/arm_mujoco.py, explicit scheme) fed HillMuscle1D
+in a coupled run.
 
 Input timing is the same in both importers: a value set before step i (fmpy:
 setReal; libcosim: the override manipulator, applied when the step commences)
@@ -25,8 +28,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,16 +39,46 @@ import pytest
 
 import elongation as el
 
+REPO = Path(__file__).resolve().parents[2]
 WORKER = Path(__file__).resolve().parent / "libcosim_worker.py"
 STEP_NS = 1_000_000  # 1 ms, exact in libcosim's integer nanoseconds
 N = 600
 ACTIVATION = 1.0
+MT_PATH = Path(os.environ.get("HILL_MUSCULOTENDON_FMU", REPO / "dist" / "HillMusculotendon1D.fmu"))
 
 
-def lengths():
-    """A stretch-release cycle (period 0.5 s, up to 20 % strain) at t_i = i h."""
-    h = STEP_NS * 1e-9
-    return [el.L0 * (1.0 + 0.1 * (1.0 - math.cos(2.0 * math.pi * i * h / 0.5))) for i in range(N)]
+@dataclass(frozen=True)
+class Case:
+    """An FMU and its stretch-release cycle: the length input goes from the
+    declared start up by 2 ``pull`` start and back, L_i = start (1 + pull (1 -
+    cos(2 pi t_i / 0.5 s)))."""
+
+    name: str
+    fmu: Path
+    start: float
+    pull: float
+
+    def lengths(self):
+        h = STEP_NS * 1e-9
+        return [self.start * (1.0 + self.pull * (1.0 - math.cos(2.0 * math.pi * i * h / 0.5))) for i in range(N)]
+
+
+CASES = ("HillMuscle1D", "HillMusculotendon1D")
+
+
+@pytest.fixture(scope="module", params=CASES)
+def case(request, fmu_path):
+    """HillMuscle1D: from L0 up to 20 % strain (start = L0). HillMusculotendon1D:
+    its path from the declared start (tendon slack length + L0) up by 0.2 L0
+    (L0 the fibres' rest length), the same pull on the fibres were the tendon
+    rigid."""
+    if request.param == "HillMuscle1D":
+        return Case(request.param, fmu_path, el.L0, 0.1)
+    if not MT_PATH.is_file():
+        pytest.fail(f"{MT_PATH} not found: build the FMUs first with `scripts/build_fmus.sh`", pytrace=False)
+    variables = el.load_fmu(MT_PATH).variables
+    start, L0 = float(variables["length"].start), float(variables["L0"].start)
+    return Case(request.param, MT_PATH, start, 0.1 * L0 / start)
 
 
 def run_worker(fmu_path, plan):
@@ -59,9 +94,9 @@ def run_worker(fmu_path, plan):
 
 
 @pytest.fixture(scope="module")
-def libcosim_run(fmu_path):
-    plan = {"step_ns": STEP_NS, "activation": ACTIVATION.hex(), "lengths": [x.hex() for x in lengths()]}
-    return run_worker(fmu_path, plan)
+def libcosim_run(case):
+    plan = {"step_ns": STEP_NS, "activation": ACTIVATION.hex(), "lengths": [x.hex() for x in case.lengths()]}
+    return run_worker(case.fmu, plan)
 
 
 def libcosim_time(k):
@@ -69,32 +104,38 @@ def libcosim_time(k):
     return k * STEP_NS / 1e9
 
 
-def fmpy_forces(fmu_path, h_of_step):
+def fmpy_forces(case, h_of_step):
     """Force after each step i (at t_{i+1}) through fmpy's FMU2Slave with the
     same inputs: set length L_i and the activation, then doStep(t_i, h_i)."""
+    from arm_pair import Unit
+
     force = {}
-    with el.Muscle(fmu_path, name="fmpy") as m:
-        L = lengths()
-        m.initialize(length=L[0], activation=ACTIVATION)
-        force[0] = m.outputs()["force"]
+    unit = Unit(case.fmu, {}, "fmpy")
+    try:
+        L = case.lengths()
+        vrs = [unit.vr["length"], unit.vr["activation"]]
+        unit.initialize(L[0], ACTIVATION)
+        force[0] = unit.slave.getReal([unit.vr["force"]])[0]
         for i in range(N):
-            m.set_inputs(length=L[i], activation=ACTIVATION)
-            m.slave.doStep(libcosim_time(i), h_of_step(i))
-            force[i + 1] = m.outputs()["force"]
+            unit.slave.setReal(vrs, [L[i], ACTIVATION])
+            unit.slave.doStep(libcosim_time(i), h_of_step(i))
+            force[i + 1] = unit.slave.getReal([unit.vr["force"]])[0]
+    finally:
+        unit.free()
     return force
 
 
 @pytest.fixture(scope="module")
-def fmpy_fixed_h(fmu_path):
+def fmpy_fixed_h(case):
     """fmpy with the nominal step h = 1e-3 s every step."""
-    return fmpy_forces(fmu_path, lambda i: STEP_NS * 1e-9)
+    return fmpy_forces(case, lambda i: STEP_NS * 1e-9)
 
 
 @pytest.fixture(scope="module")
-def fmpy_libcosim_h(fmu_path):
+def fmpy_libcosim_h(case):
     """fmpy with the step libcosim passes: the difference of its double time
     points, t_{i+1} - t_i, which differs from 1e-3 in the last bits."""
-    return fmpy_forces(fmu_path, lambda i: libcosim_time(i + 1) - libcosim_time(i))
+    return fmpy_forces(case, lambda i: libcosim_time(i + 1) - libcosim_time(i))
 
 
 def libcosim_force(run):
@@ -111,20 +152,22 @@ def test_libcosim_runs_all_steps(libcosim_run):
     assert np.array_equal(times, steps * STEP_NS)
 
 
-def test_libcosim_force_matches_fmpy(libcosim_run, fmpy_fixed_h):
+def test_libcosim_force_matches_fmpy(case, libcosim_run, fmpy_fixed_h):
     """The force trace under libcosim equals fmpy's (nominal h = 1e-3 s) on
     the same inputs to 1e-9 relative of the trace's scale at every
-    communication point. Measured: max |dF| = 2.0e-12 N of 171.7 N (1.2e-14
-    relative), bitwise equal at 387 of 600 points: libcosim passes
-    h = t_{i+1} - t_i computed from its integer-nanosecond clock (see the
-    next test), which is not always the double 1e-3."""
+    communication point. Measured: HillMuscle1D max |dF| = 2.0e-12 N of
+    171.7 N (1.2e-14 relative), bitwise equal at 387 of 600 points;
+    HillMusculotendon1D 1.2e-11 N of 846.6 N (1.4e-14), bitwise equal at
+    502 of 600. libcosim passes h = t_{i+1} - t_i computed from its
+    integer-nanosecond clock (see the next test), which is not always the
+    double 1e-3."""
     idx, force = libcosim_force(libcosim_run)
     ours = np.array([fmpy_fixed_h[int(i)] for i in idx])
     scale = np.max(abs(ours))
     diff = abs(force - ours)
     worst = int(np.argmax(diff))
-    print(f"libcosim vs fmpy (h = 1e-3): max |dF| = {diff.max():.3e} N at t = {idx[worst] * STEP_NS * 1e-9:.3f} s, "
-          f"scale {scale:.3e} N, relative {diff.max() / scale:.3e}; "
+    print(f"{case.name}: libcosim vs fmpy (h = 1e-3): max |dF| = {diff.max():.3e} N "
+          f"at t = {idx[worst] * STEP_NS * 1e-9:.3f} s, scale {scale:.3e} N, relative {diff.max() / scale:.3e}; "
           f"bitwise equal at {np.sum(diff == 0)} of {diff.size} points")
     assert scale > 10.0  # the activated muscle carries a real force
     assert diff.max() <= 1e-9 * scale
@@ -140,12 +183,12 @@ def test_libcosim_is_bitwise_fmpy_with_its_step_sizes(libcosim_run, fmpy_libcosi
     assert np.array_equal(force, ours), np.flatnonzero(force != ours)[:10]
 
 
-def test_libcosim_sees_the_inputs_it_was_given(libcosim_run):
+def test_libcosim_sees_the_inputs_it_was_given(case, libcosim_run):
     """The length libcosim reports after step i is the override set before
     step i (the FMU's input convention, as fmpy applies it)."""
     times = np.array(libcosim_run["time_ns"])
     seen = np.array([float.fromhex(x) for x in libcosim_run["length"]])
-    L = lengths()
+    L = case.lengths()
     for t, s in zip(times, seen):
         i = int(t // STEP_NS)
         if i >= 1:
