@@ -812,7 +812,7 @@ def main(argv=None):
                    help="default: all (1d), implicit (fe)")
     p.add_argument("--step", type=float, default=None,
                    help=f"communication step H [s] (default: 1e-3 for 1d, FE_STEP = {FE_STEP:g} for fe)")
-    p.add_argument("--t-end", type=float, default=None, help="simulated time [s] (default 1.0; --pair: 1.6)")
+    p.add_argument("--t-end", type=float, default=None, help="simulated time [s] (default 1.0; --pair: 2.4)")
     p.add_argument("--model", choices=MODELS, default="1d")
     p.add_argument("--fmu", default=None, help="FMU path (default: dist/HillMuscle1D.fmu or dist/HillMuscleFE.fmu)")
     p.add_argument("--mesh", type=_mesh_arg, action="append", default=[], metavar="NAME=VALUE",
