@@ -586,12 +586,12 @@ HOLD_TIMES = (0.3, 1.3, 2.4)
 """Ends of the three holds of ``CoContraction`` (d = 0, 0.3, -0.05) [s]."""
 
 
-def compare(H=1e-3, fmus=None, scheme="implicit"):
+def compare(H=1e-3, fmus=None, scheme="implicit", t_end=T_END):
     """The compliant FMUs, the rigid-tendon FMUs and MuJoCo's muscles on the
     pattern; a dict of runs and printed numbers."""
-    runs = {"compliant": simulate_pair(scheme, H, fmus=fmus),
-            "rigid": simulate_pair(scheme, H, fmus=fmus, params={"compliant_tendon": False}),
-            "builtin": simulate_builtin(H=H)}
+    runs = {"compliant": simulate_pair(scheme, H, t_end=t_end, fmus=fmus),
+            "rigid": simulate_pair(scheme, H, t_end=t_end, fmus=fmus, params={"compliant_tendon": False}),
+            "builtin": simulate_builtin(t_end=t_end, H=H)}
     print(f"\n### Co-contraction pattern, {scheme} at H = {1e3 * H:g} ms\n")
     times = " / ".join(f"{t:g}" for t in HOLD_TIMES)
     print(f"| run | stable | angle at {times} s [deg] | peak angle [deg] | forces (flexor, extensor) at {times} s [N] "
@@ -721,7 +721,7 @@ def main(scheme="all", step=1e-3, fmus=None, out=REPO / "docs" / "figures", swee
     fname = out / f"arm_pair_{scheme}_H{1e3 * step:g}ms.png"
     plot_schemes(results, fname, f"Antagonist pair ({', '.join(names)}), H = {1e3 * step:g} ms")
     print(f"wrote {fname}")
-    runs = compare(step, fmus=fmus, scheme="implicit" if scheme == "all" else scheme)
+    runs = compare(step, fmus=fmus, scheme="implicit" if scheme == "all" else scheme, t_end=t_end)
     fname = out / f"arm_pair_compare_H{1e3 * step:g}ms.png"
     plot_comparison(runs, fname, "Co-contraction: compliant vs rigid tendon vs MuJoCo muscles")
     print(f"wrote {fname}")
