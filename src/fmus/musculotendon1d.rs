@@ -350,6 +350,10 @@ impl<S: Scene> Model for MusculotendonModel<S> {
         }
     }
 
+    fn check_stepping_outputs(&self) -> Result<(), String> {
+        state::check_stepping(&self.mt)
+    }
+
     fn serialize(&self, out: &mut Vec<u8>) {
         state::encode(self, out);
     }

@@ -280,7 +280,7 @@ where
             kt,
         })
     };
-    let (lo_bound, hi_bound) = (range.0.max(min_fibre), range.1);
+    let (mut lo_bound, mut hi_bound) = (range.0.max(min_fibre), range.1);
     let (mut lo, mut hi) = (lo_bound, hi_bound);
     let (mut lo_known, mut hi_known) = (false, false);
     let mut x = guess.clamp(lo_bound, hi_bound);
@@ -288,8 +288,37 @@ where
     let (mut dx, mut dx_old) = (hi - lo, hi - lo);
     let mut reach = 1e-3 * x;
     // 200: bisection of the evaluable range to 1 ulp takes ~60.
+    // The last point the muscle could evaluate.
+    let mut good: Option<f64> = None;
     for _ in 0..200 {
-        let pt = eval(x)?;
+        let pt = match eval(x) {
+            Ok(pt) => pt,
+            // The muscle cannot be evaluated at x (its law overflows, or its
+            // step fails, past some fibre length): the evaluable range ends
+            // between the last good point and x. Move that bound of the
+            // range to x and halve the step, until x is within 4 ulp of
+            // the good point, where the failure is the answer.
+            Err(e) => match good {
+                Some(g) if (x - g).abs() > 4.0 * f64::EPSILON * x.abs() => {
+                    if x > g {
+                        hi_bound = x;
+                        if !hi_known {
+                            hi = x;
+                        }
+                    } else {
+                        lo_bound = x;
+                        if !lo_known {
+                            lo = x;
+                        }
+                    }
+                    reach = 0.25 * (x - g).abs();
+                    x = 0.5 * (g + x);
+                    continue;
+                }
+                _ => return Err(e),
+            },
+        };
+        good = Some(x);
         let step = pt.r / pt.dr;
         let newton_ok = pt.dr > 0.0 && step.is_finite();
         if pt.r.abs() <= tol || (newton_ok && step.abs() <= 4.0 * f64::EPSILON * x) {
@@ -402,6 +431,51 @@ mod tests {
 
     fn solve(u: &Unit, path: f64, a: f64) -> Result<Equilibrium, EquilibriumError<()>> {
         solve_equilibrium(u, path, (0.1 * L0, 5.0 * L0), L0, TOL, synthetic(a))
+    }
+
+    /// A muscle that cannot be evaluated past a fibre length (its law
+    /// overflows there): a root below it is found however far the
+    /// outward search overshoots into the failing lengths; a root beyond
+    /// it is the muscle's error at the end of the evaluable lengths.
+    #[test]
+    fn a_muscle_that_fails_past_a_length_is_searched_below_it() {
+        let u = unit(0.04, 0.0, true);
+        let failing = |limit: f64| {
+            let mut m = synthetic(0.0);
+            move |l: f64| if l > limit { Err(()) } else { m(l) }
+        };
+        let path = 0.04 * 1.5 + 1.3 * L0;
+        let free = solve(&u, path, 0.0).unwrap();
+        for limit in [1.02, 1.5, 3.0].map(|k| k * free.fibre_length) {
+            let eq = solve_equilibrium(
+                &u,
+                path,
+                (0.1 * L0, 5.0 * L0),
+                0.5 * L0,
+                TOL,
+                failing(limit),
+            )
+            .unwrap();
+            assert!(eq.residual.abs() <= TOL, "{limit}: {}", eq.residual);
+            assert!((eq.fibre_length - free.fibre_length).abs() <= 1e-12 * L0);
+        }
+        let below = 0.9 * free.fibre_length;
+        match solve_equilibrium(
+            &u,
+            path,
+            (0.1 * L0, 5.0 * L0),
+            0.5 * L0,
+            TOL,
+            failing(below),
+        ) {
+            Err(EquilibriumError::Muscle { fibre_length, .. }) => {
+                assert!(
+                    fibre_length > below && fibre_length - below <= 1e-12 * L0,
+                    "{fibre_length}"
+                )
+            }
+            other => panic!("{:?}", other.map(|e| e.fibre_length)),
+        }
     }
 
     #[test]

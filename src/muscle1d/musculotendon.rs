@@ -476,6 +476,89 @@ impl<C: Components> Musculotendon1D<C> {
         ([force, stress, l_m, strain, pen.angle], dforce)
     }
 
+    /// The stored outputs and dF_T/d(command, path) recomputed from the
+    /// committed state (the path, the muscle's stretch, stress and
+    /// partials) and the parameters, as [`Self::unit_outputs`] computed them
+    /// at the commit: `Err` names the first that differs. For a restored
+    /// state, where nothing else ties them to the muscle. The values are
+    /// the same expressions of the same numbers, so they must agree to
+    /// rounding (the partials of L_M come back through the muscle's
+    /// sensitivities, an ulp or so from the end stretch's).
+    pub fn check_committed_outputs(&self) -> Result<(), String> {
+        use super::outputs::Output;
+        let unit = self.unit();
+        let (l0, area) = (self.muscle.l0, self.muscle.area);
+        let l_m = self.muscle.lambda * l0;
+        let pen = unit.pennation.at(l_m);
+        let f_m = self.muscle.outputs[Output::Stress as usize] * area;
+        let dl =
+            [Input::Activation, Input::Length].map(|i| self.partial(UnitOutput::FibreLength, i));
+        let dpath = [0.0, 1.0];
+        let (force, strain, dforce) = if self.unit.compliant_tendon {
+            let lt = self.committed_path - pen.projection;
+            let (ft, kt) = unit.tendon.force(lt);
+            let df = [0, 1].map(|c| kt * (dpath[c] - pen.dprojection * dl[c]));
+            (ft, unit.tendon.strain(lt), df)
+        } else {
+            let dn = self.muscle.jacobian.dnominal;
+            let df = [0, 1].map(|c| dn[c] * area * pen.cos + f_m * pen.dcos * dl[c]);
+            (f_m * pen.cos, 0.0, df)
+        };
+        let f0 = self.muscle.params.sigma0 * area;
+        let close = |a: f64, b: f64, scale: f64, rtol: f64| {
+            (a - b).abs() <= rtol * scale.max(a.abs()).max(b.abs())
+        };
+        let stored = |o: UnitOutput| self.outputs[o as usize];
+        let checks = [
+            ("force", stored(UnitOutput::Force), force, f0, 1e-12),
+            (
+                "fibre_length",
+                stored(UnitOutput::FibreLength),
+                l_m,
+                l0,
+                1e-14,
+            ),
+            (
+                "pennation",
+                stored(UnitOutput::PennationAngle),
+                pen.angle,
+                1e-12,
+                1e-12,
+            ),
+            (
+                "tendon_strain",
+                stored(UnitOutput::TendonStrain),
+                strain,
+                1e-12,
+                1e-12,
+            ),
+            // The stiffness (and the force's activation partial) against the
+            // series of tendon and muscle at this state.
+            (
+                "d force / d activation",
+                self.dforce[IN_ACTIVATION],
+                dforce[IN_ACTIVATION],
+                f0,
+                1e-8,
+            ),
+            (
+                "stiffness",
+                self.dforce[IN_LENGTH],
+                dforce[IN_LENGTH],
+                f0 / l0,
+                1e-8,
+            ),
+        ];
+        for (name, got, want, scale, rtol) in checks {
+            if !close(got, want, scale, rtol) {
+                return Err(format!(
+                    "output {name} = {got} is not the unit's at the committed state ({want})"
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// How many times the last step evaluated the muscle's piece law
     /// (uniaxial solves, over every piece tried): its substeps for a rigid
     /// tendon without pennation, more where the equilibrium is solved.

@@ -278,7 +278,7 @@ fn check_committed<C: Components>(u: &Muscle1D<C>) -> Result<(), String> {
 /// (`Muscle1D::evaluate`). Only for a stepping instance: before, the area
 /// may have been set since the outputs were committed ([`check_committed`]
 /// allows any area in its range).
-pub(super) fn check_force<C: Components>(u: &Muscle1D<C>) -> Result<(), String> {
+pub(crate) fn check_force<C: Components>(u: &Muscle1D<C>) -> Result<(), String> {
     let (force, stress) = (
         u.outputs[Output::Force as usize],
         u.outputs[Output::Stress as usize],

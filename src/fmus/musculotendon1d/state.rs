@@ -11,7 +11,7 @@ use crate::fmi2::{Model, ModelError};
 use crate::fmus::codec::{
     check_output, check_scene_constants, decode_from, encode_onto, wire_struct, MaybeF64,
 };
-use crate::fmus::hill1d::state::{muscle_state, restore_muscle, Hill1DState};
+use crate::fmus::hill1d::state::{check_force, muscle_state, restore_muscle, Hill1DState};
 use crate::law::params::{L0_RANGE, TENDON_PARAMETERS};
 use crate::law::pennation::MIN_COS;
 use crate::law::Components;
@@ -168,6 +168,15 @@ fn check_unit_outputs<C: Components>(u: &Musculotendon1D<C>) -> Result<(), Strin
         ));
     }
     Ok(())
+}
+
+/// [`Model::check_stepping_outputs`] of the unit: a stepping instance's
+/// parameters are those of its last commit, so every stored output and
+/// partial must be the unit's at the committed state (the muscle's force
+/// its stress times the area, bit for bit; the unit's outputs recomputed).
+pub(super) fn check_stepping<C: Components>(u: &Musculotendon1D<C>) -> Result<(), String> {
+    check_force(&u.muscle)?;
+    u.check_committed_outputs()
 }
 
 #[cfg(test)]

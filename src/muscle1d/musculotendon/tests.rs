@@ -343,3 +343,48 @@ fn a_path_rate_ends_the_step_at_path_plus_h_rate() {
     // The rate holds for one step.
     assert_eq!(with_rate.path_rate, 0.0);
 }
+
+/// The stored outputs and partials are the unit's at the committed state
+/// after initialization and every step (compliant and rigid, with and
+/// without pennation, through a twitch, a pull, a jump and a slack phase),
+/// and a stored value changed by 1e-6 of itself is found.
+#[test]
+fn the_committed_outputs_are_recomputed_from_the_state() {
+    for (eps0, compliant) in [(0.04, true), (1e-4, true), (0.04, false)] {
+        for alpha0 in [0.0, 0.4, 1.0] {
+            let mut mt = unit(eps0, alpha0, compliant);
+            mt.check_committed_outputs().unwrap();
+            let rest = mt.path();
+            let program = (0..60).map(|i| {
+                let t = i as f64 * 1e-3;
+                let path = match i {
+                    0..=29 => rest + 1e-4 * (i as f64).min(10.0),
+                    30 => rest + 0.2 * 0.05, // a jump
+                    31..=44 => rest - 0.005, // slack for a compliant tendon
+                    _ => rest,
+                };
+                (command_at(t).max(if i > 40 { 1.0 } else { 0.0 }), path)
+            });
+            for (k, (u, path)) in program.enumerate() {
+                mt.set_command(u);
+                mt.set_path(path);
+                if mt.step(1e-3).is_err() {
+                    continue; // (a rigid tendon cannot follow every path)
+                }
+                mt.check_committed_outputs().unwrap_or_else(|e| {
+                    panic!("eps0 {eps0} {compliant} alpha0 {alpha0} step {k}: {e}")
+                });
+            }
+            for forged in [
+                |m: &mut Unit1D| m.dforce[IN_LENGTH] *= 1.0 + 1e-6,
+                |m: &mut Unit1D| m.dforce[IN_ACTIVATION] = 1.0 + 2.0 * m.dforce[IN_ACTIVATION],
+                |m: &mut Unit1D| m.outputs[UnitOutput::Force as usize] += 1e-6 * f0(m),
+                |m: &mut Unit1D| m.outputs[UnitOutput::FibreLength as usize] *= 1.0 + 1e-6,
+            ] {
+                let mut m = mt.clone();
+                forged(&mut m);
+                assert!(m.check_committed_outputs().is_err());
+            }
+        }
+    }
+}

@@ -71,17 +71,32 @@ pub(crate) fn reach(state: FmiState) -> Vec<Op> {
             Op::Call(Call::Enter(Comp::Valid)),
         ],
         FmiState::StepComplete => vec![init],
-        FmiState::StepFailed => vec![
-            init,
-            // 20 L0: beyond what the law can evaluate.
-            Op::Call(set_real(vec![t.length], vec![1.0])),
-            Op::Step {
+        FmiState::StepFailed => {
+            let mut v = vec![
+                init,
+                // The longest length the input takes (100 m): beyond what
+                // the law can evaluate.
+                Op::Call(set_real(vec![t.length], vec![100.0])),
+            ];
+            let rate = profile().failing_length_rate;
+            if rate != 0.0 {
+                v.push(Op::Call(Call::SetInputDer {
+                    comp: Comp::Valid,
+                    vrs: vec![t.length],
+                    orders: vec![1],
+                    vals: vec![rate],
+                    ptrs: [Ptr::Ok; 3],
+                    len: Len::Exact,
+                }));
+            }
+            v.push(Op::Step {
                 comp: Comp::Valid,
                 tc: Tc::Exact,
                 h: H::Lit(1e-3),
                 flag: 0,
-            },
-        ],
+            });
+            v
+        }
         FmiState::Terminated => vec![init, Op::Call(Call::Terminate(Comp::Valid))],
         FmiState::Error => vec![Op::Restore(P_E)],
         FmiState::StepCanceled => vec![Op::Restore(P_SCA)],
@@ -650,7 +665,7 @@ pub fn null_component_environment_is_passed_to_the_logger() {
         assert_eq!((abi().enter_initialization_mode)(c), fmi2OK);
         set_integers(c, profile().cheap_integers).unwrap();
         assert_eq!((abi().exit_initialization_mode)(c), fmi2OK);
-        let (vrs, vals) = ([t.activation, t.length], [1.0, 1.05 * t.l0]);
+        let (vrs, vals) = ([t.activation, t.length], [1.0, 1.05 * t.length0]);
         assert_eq!((abi().set_real)(c, vrs.as_ptr(), 2, vals.as_ptr()), fmi2OK);
         assert_eq!((abi().do_step)(c, 0.0, 1e-3, fmi2True), fmi2OK);
         assert_eq!(
@@ -692,7 +707,7 @@ pub fn set_fmu_state_with_null_pointer_is_an_error_and_changes_nothing() {
     let step = |f: &Fmu, i: usize| unsafe {
         let h = 1e-3;
         let vrs = [t.activation, t.length];
-        let vals = [1.0, t.l0 * (1.0 + 0.01 * i as f64)];
+        let vals = [1.0, t.length0 * (1.0 + 0.01 * i as f64)];
         assert_eq!(
             (abi().set_real)(f.c, vrs.as_ptr(), 2, vals.as_ptr()),
             fmi2OK

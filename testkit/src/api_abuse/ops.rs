@@ -113,7 +113,7 @@ pub(crate) enum Op {
     /// Deserialize a pool state into slot 3 and set it.
     Restore(usize),
     /// What a master does on a discard: save the state in slot 0, set the
-    /// length to `factor` · L0 (beyond what the law can evaluate for large
+    /// length to `factor` × its start (beyond what the law can evaluate for large
     /// factors), step (discarded), ask why, roll back, step again.
     DiscardRecover(f64),
     /// Deterministic tests only: the FMI state before the next call.
@@ -185,7 +185,7 @@ pub(crate) fn expand(op: &Op) -> Vec<Op> {
         Op::Run { n, h, tc, amp, act } => (0..*n)
             .flat_map(|i| {
                 let phase = 2.0 * std::f64::consts::PI * i as f64 / 40.0;
-                let length = t.l0 * (1.0 + amp * phase.sin());
+                let length = t.length0 * (1.0 + amp * phase.sin());
                 [
                     Op::Call(set_real(vec![t.activation, t.length], vec![*act, length])),
                     Op::Step {
@@ -231,7 +231,7 @@ pub(crate) fn expand(op: &Op) -> Vec<Op> {
                     comp: Comp::Valid,
                     out: StateOut::Slot(0),
                 }),
-                Op::Call(set_real(vec![t.length], vec![t.l0 * factor])),
+                Op::Call(set_real(vec![t.length], vec![t.length0 * factor])),
                 step.clone(),
                 status(StatusFn::Status, fmi2DoStepStatus),
                 status(StatusFn::Real, fmi2LastSuccessfulTime),
@@ -240,7 +240,7 @@ pub(crate) fn expand(op: &Op) -> Vec<Op> {
                     comp: Comp::Valid,
                     st: StateIn::Slot(0),
                 }),
-                Op::Call(set_real(vec![t.length], vec![t.l0])),
+                Op::Call(set_real(vec![t.length], vec![t.length0])),
                 step,
             ]
         }

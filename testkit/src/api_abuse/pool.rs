@@ -251,11 +251,21 @@ pub(crate) fn pool() -> &'static Vec<Vec<u8>> {
                 ok((abi().get_real)(c, &t.outputs[0], 1, &mut out));
             }
             let vrs = [t.activation, t.length];
-            ok((abi().set_real)(c, vrs.as_ptr(), 2, [0.3, 0.055].as_ptr()));
+            ok((abi().set_real)(
+                c,
+                vrs.as_ptr(),
+                2,
+                [0.3, 1.1 * t.length0].as_ptr(),
+            ));
             pool[P_IM] = f.state_bytes().unwrap();
             ok((abi().exit_initialization_mode)(c));
             pool[P_SC] = f.state_bytes().unwrap();
-            ok((abi().set_real)(c, vrs.as_ptr(), 2, [1.0, 0.052].as_ptr()));
+            ok((abi().set_real)(
+                c,
+                vrs.as_ptr(),
+                2,
+                [1.0, 1.04 * t.length0].as_ptr(),
+            ));
             let mut tc = 0.0;
             for _ in 0..20 {
                 ok((abi().do_step)(c, tc, 1e-3, 1));
@@ -270,9 +280,9 @@ pub(crate) fn pool() -> &'static Vec<Vec<u8>> {
             sca[state_code_offset()] = FmiState::StepCanceled.to_u8();
             fix_checksum(&mut sca);
             pool[P_SCA] = sca;
-            // A length 20 L0 (L0 = 0.05 m): beyond what the law can
-            // evaluate, discarded.
-            ok((abi().set_real)(c, &t.length, 1, &1.0));
+            // The longest length the input takes (100 m): beyond what the
+            // law can evaluate (a muscle), or the fibres can span (a unit).
+            ok((abi().set_real)(c, &t.length, 1, &100.0));
             let s = (abi().do_step)(c, tc, 1e-3, 1);
             assert_eq!(s, fmi2Discard, "{:?}", f.book.take());
             pool[P_SF] = f.state_bytes().unwrap();

@@ -181,8 +181,17 @@ pub fn out_of_range_parameters_are_refused_naming_the_range() {
 /// message; the FMU's own serialized state always deserializes.
 pub fn every_parameter_at_either_bound_steps_and_round_trips() {
     let t = table();
-    let vr = |n: &str| t.vars.iter().position(|v| v.name == n).unwrap() as u32;
-    let (ce, see) = (vr("ce_stretch"), vr("see_stretch"));
+    let vr = |n: &str| t.vars.iter().position(|v| v.name == n).map(|i| i as u32);
+    let vr_real = |c: fmi2Component, n: &str| {
+        let mut x = f64::NAN;
+        if let Some(r) = vr(n) {
+            unsafe { (abi().get_real)(c, &r, 1, &mut x) };
+        }
+        x
+    };
+    // The CE and SEE stretches where the model outputs them (a
+    // musculotendon unit outputs its fibre length instead).
+    let stretches = vr("ce_stretch").zip(vr("see_stretch"));
     let mut failures = Vec::new();
     let mut refused = Vec::new();
     let mut cases: Vec<(&str, Value)> = Vec::new();
@@ -199,21 +208,33 @@ pub fn every_parameter_at_either_bound_steps_and_round_trips() {
     for (name, value) in cases {
         let f = match initialized_with(name, value) {
             Ok(f) => {
-                let mut l0 = f64::NAN;
-                unsafe { (abi().get_real)(f.c, &vr("L0"), 1, &mut l0) };
+                let l0 = vr_real(f.c, "L0");
+                // A unit's length is its path: the tendon at its slack
+                // length, then the fibres (at the pennation angle).
+                let (lts, alpha) = match vr("tendon_slack_length") {
+                    Some(_) => (
+                        vr_real(f.c, "tendon_slack_length"),
+                        vr_real(f.c, "pennation_angle"),
+                    ),
+                    None => (0.0, 0.0),
+                };
                 let mut time = 0.0;
                 for (k, stretch) in [1.0, 1.1, 1.2, 0.9, 1.0].into_iter().enumerate() {
+                    let length = lts + stretch * l0 * alpha.cos();
                     unsafe {
                         (abi().set_real)(f.c, &t.activation, 1, &1.0);
-                        (abi().set_real)(f.c, &t.length, 1, &(stretch * l0));
+                        (abi().set_real)(f.c, &t.length, 1, &length);
                         let st = (abi().do_step)(f.c, time, 1e-3, 0);
                         if st == fmi2OK {
                             time += 1e-3;
                             let mut out = vec![f64::NAN; t.outputs.len()];
                             (abi().get_real)(f.c, t.outputs.as_ptr(), out.len(), out.as_mut_ptr());
-                            let (mut c, mut s) = (f64::NAN, f64::NAN);
-                            (abi().get_real)(f.c, &ce, 1, &mut c);
-                            (abi().get_real)(f.c, &see, 1, &mut s);
+                            let (c, s) = match stretches {
+                                Some(_) => {
+                                    (vr_real(f.c, "ce_stretch"), vr_real(f.c, "see_stretch"))
+                                }
+                                None => (1.0, 1.0),
+                            };
                             let d = &t.differentiated;
                             let mut dv = vec![f64::NAN; d.len()];
                             let dd = (abi().get_directional_derivative)(
@@ -262,8 +283,8 @@ pub fn every_parameter_at_either_bound_steps_and_round_trips() {
 /// input changes completes with `fmi2OK`, but the step predictor's history
 /// rate (a change divided by h) overflows to ±inf and is committed: the
 /// FMU's own serialized state is then rejected by `fmi2DeSerializeFMUstate`
-/// ("a non-finite value"). Inputs: defaults; length 0.06, `fmi2DoStep(0,
-/// 0.01)`; length 0.05, `fmi2DoStep(0.01, 5e-324)` → `fmi2OK`; serialize →
+/// ("a non-finite value"). Inputs: defaults; length 1.2 × its start, `fmi2DoStep(0,
+/// 0.01)`; length its start, `fmi2DoStep(0.01, 5e-324)` → `fmi2OK`; serialize →
 /// deserialize. Expected: `fmi2OK` (or the step refused or discarded with
 /// a message). Was: `fmi2Error` (fixed: a rate that overflows is not committed, and a step whose partial derivatives are not finite is discarded).
 pub fn tiny_step_leaves_a_serializable_state() {
@@ -273,9 +294,12 @@ pub fn tiny_step_leaves_a_serializable_state() {
         assert_eq!((abi().enter_initialization_mode)(f.c), fmi2OK);
         set_integers(f.c, profile().cheap_integers).unwrap();
         assert_eq!((abi().exit_initialization_mode)(f.c), fmi2OK);
-        assert_eq!((abi().set_real)(f.c, &t.length, 1, &0.06), fmi2OK);
+        assert_eq!(
+            (abi().set_real)(f.c, &t.length, 1, &(1.2 * t.length0)),
+            fmi2OK
+        );
         assert_eq!((abi().do_step)(f.c, 0.0, 0.01, 0), fmi2OK);
-        assert_eq!((abi().set_real)(f.c, &t.length, 1, &0.05), fmi2OK);
+        assert_eq!((abi().set_real)(f.c, &t.length, 1, &t.length0), fmi2OK);
         let s = (abi().do_step)(f.c, 0.01, 5e-324, 0);
         f.book.clear();
         if s != fmi2OK {

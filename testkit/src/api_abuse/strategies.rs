@@ -229,7 +229,7 @@ pub(crate) fn init_op() -> impl Strategy<Value = Op> + Clone {
     let inputs = prop_oneof![
         2 => Just(vec![]),
         3 => (0.0f64..=1.0, 0.8f64..1.2)
-            .prop_map(move |(a, l)| vec![(t.activation, a), (t.length, t.l0 * l)]),
+            .prop_map(move |(a, l)| vec![(t.activation, a), (t.length, t.length0 * l)]),
         1 => prop::collection::vec(vr_real(), 1..3),
     ];
     (

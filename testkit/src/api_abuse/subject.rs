@@ -46,10 +46,16 @@ pub trait Subject {
     const INTEGER_SPAN: Option<i32>;
     /// Longest `Run` (steps).
     const LONG_RUN: usize;
-    /// The lengths (× `L0`) a `DiscardRecover` jumps to in one step.
+    /// The lengths (× the `length` input's start) a `DiscardRecover` jumps
+    /// to in one step.
     const DISCARD_FACTORS: &'static [f64];
     /// Steps of each of the four drift runs.
     const DRIFT_STEPS: usize;
+    /// The length's input derivative (m/s) set before the jump to the
+    /// longest length in the prefix reaching `stepFailed` (0: none). A unit
+    /// with a compliant tendon may complete that jump (the tendon takes the
+    /// length); a rate that ends the step at a negative path it cannot.
+    const FAILING_LENGTH_RATE: f64 = 0.0;
     /// Variables per sequence of the special-value test (1: one sequence
     /// per state, variable and logging setting; more: each value still
     /// starts from the same saved state).
@@ -136,6 +142,7 @@ pub(crate) struct Profile {
     pub(crate) long_run: usize,
     pub(crate) discard_factors: &'static [f64],
     pub(crate) drift_steps: usize,
+    pub(crate) failing_length_rate: f64,
     pub(crate) special_value_vars_per_sequence: usize,
     pub(crate) special_value_both_logging: bool,
     pub(crate) functions_per_sequence: usize,
@@ -171,6 +178,7 @@ impl Installed {
                 long_run: S::LONG_RUN,
                 discard_factors: S::DISCARD_FACTORS,
                 drift_steps: S::DRIFT_STEPS,
+                failing_length_rate: S::FAILING_LENGTH_RATE,
                 special_value_vars_per_sequence: S::SPECIAL_VALUE_VARS_PER_SEQUENCE,
                 special_value_both_logging: S::SPECIAL_VALUE_BOTH_LOGGING,
                 functions_per_sequence: S::FUNCTIONS_PER_SEQUENCE,
@@ -287,9 +295,11 @@ pub(crate) struct Table {
     pub(crate) differentiated: Vec<u32>,
     pub(crate) activation: u32,
     pub(crate) length: u32,
-    /// The start value of the rest length `L0`: the lengths of `Run`,
-    /// `DiscardRecover` and `Init` are multiples of it.
-    pub(crate) l0: f64,
+    /// The start value of the `length` input: the lengths of `Run`,
+    /// `DiscardRecover` and `Init` are multiples of it. For a muscle it is
+    /// its rest length `L0`; for a musculotendon unit, whose length is its
+    /// whole path, the rest path (tendon slack length plus the fibres).
+    pub(crate) length0: f64,
 }
 
 pub(crate) fn table() -> &'static Table {
@@ -320,9 +330,9 @@ pub(crate) fn table() -> &'static Table {
             Some(names) => names.iter().map(|n| vr_of(n)).collect(),
             None => outputs.clone(),
         };
-        let l0 = match vars[vr_of("L0") as usize].ty {
+        let length0 = match vars[vr_of("length") as usize].ty {
             VarType::Real { start: Some(s), .. } => s,
-            other => panic!("L0: {other:?}"),
+            other => panic!("length: {other:?}"),
         };
         Table {
             activation: vr_of("activation"),
@@ -333,7 +343,7 @@ pub(crate) fn table() -> &'static Table {
             reals,
             integers,
             differentiated,
-            l0,
+            length0,
             vars,
         }
     })
