@@ -20,7 +20,7 @@
 //! and which factorisation the equilibrium's tangent gets. With
 //! `HM_DUMP=DIR` each case writes its force and positions (one value a
 //! line, full digits) to `DIR/x_<L/L0>_<level>.txt`, to compare two builds'
-//! equilibria.
+//! equilibria. `--case L/L0,level` (repeatable) replaces the three cases.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -96,7 +96,21 @@ fn main() {
     println!("Muscle::isometric on the default mesh, {runs} runs");
     println!("| L/L0 | level | median s | range s | solves | residuals | factorisations | force N | tangent at the equilibrium |");
     println!("|---|---|---|---|---|---|---|---|---|");
-    for (stretch, level) in [(1.0, 0.5), (1.0, 1.0), (1.1, 0.5)] {
+    let cases: Vec<(f64, f64)> = args
+        .iter()
+        .zip(args.iter().skip(1))
+        .filter(|(flag, _)| *flag == "--case")
+        .map(|(_, v)| {
+            let (l, a) = v.split_once(',').expect("--case L/L0,level");
+            (l.parse().expect("L/L0"), a.parse().expect("level"))
+        })
+        .collect();
+    let cases = if cases.is_empty() {
+        vec![(1.0, 0.5), (1.0, 1.0), (1.1, 0.5)]
+    } else {
+        cases
+    };
+    for (stretch, level) in cases {
         let mut times = Vec::new();
         let mut force = 0.0;
         let mut kind = None;
