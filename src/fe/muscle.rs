@@ -5,8 +5,8 @@
 //! is neglected (as in the paper).
 //!
 //! Entry points: [`Muscle::isometric`] (initialization: the length ramped,
-//! then the activation level, relaxing to the isometric equilibrium where
-//! the ramp fails); [`Muscle::advance`] (one step: each (sub)step solved by
+//! then the muscle relaxed to the isometric equilibrium at the activation
+//! level, the level's ramp where that fails); [`Muscle::advance`] (one step: each (sub)step solved by
 //! [`crate::fe::newton`], retried by continuation in its inputs and then in
 //! 2, 4, … [`MAX_SUBSTEPS`] substeps); [`Muscle::advance_controlled`] (the
 //! step in pieces whose CE–SEE error estimate meets a tolerance,
