@@ -286,15 +286,7 @@ fn a_rigid_tendon_without_pennation_is_the_plain_muscle() {
     let rest = rest_path();
     let mt = Mt::new(&[], &[("compliant_tendon", false)], 0.0, rest);
     let (l0, area, lts) = (mt.get("L0"), mt.get("area"), mt.get("tendon_slack_length"));
-    // The plain muscle at the unit's substep tolerance (its scene's default
-    // is tighter than HillMuscle1D's).
-    let tol = mt.get("substep_tolerance");
-    let plain = Fmu::<Hill1D>::new(
-        &[("L0", l0), ("area", area), ("substep_tolerance", tol)],
-        &[],
-        0.0,
-        rest - lts,
-    );
+    let plain = Fmu::<Hill1D>::new(&[("L0", l0), ("area", area)], &[], 0.0, rest - lts);
     for i in 0..300 {
         let (u, path) = protocol(i, rest);
         let path = path.max(rest - 0.01);
@@ -331,11 +323,8 @@ fn directional_derivatives_match_finite_differences_of_the_step_map() {
     let names = &OUTPUTS[..6];
     let mut worst: f64 = 0.0;
     for (alpha0, compliant) in [(0.0, true), (0.4, true), (0.4, false)] {
-        // At HillMuscle1D's substep tolerance, whose pieces do not switch
-        // pattern within these differences (the scene's tighter default
-        // puts a switch inside one of them).
         let f = Mt::new(
-            &[("pennation_angle", alpha0), ("substep_tolerance", 1e-3)],
+            &[("pennation_angle", alpha0)],
             &[("compliant_tendon", compliant)],
             0.3,
             rest + 0.005,

@@ -161,9 +161,7 @@ def test_the_equilibrium_holds_after_every_step(unit, alpha0):
 def test_a_rigid_tendon_without_pennation_is_hill_muscle_1d(unit):
     m = unit(bools={"compliant_tendon": False})
     rest, lts = m.start("length"), m.start("tendon_slack_length")
-    # The plain muscle at the unit's substep tolerance (the scene's default is tighter).
-    plain = unit(fmu_id="HillMuscle1D", reals={"L0": m.start("L0"), "area": m.start("area"),
-                                              "substep_tolerance": m.start("substep_tolerance")},
+    plain = unit(fmu_id="HillMuscle1D", reals={"L0": m.start("L0"), "area": m.start("area")},
                  length=rest - lts)
     for i in range(300):
         u, path = protocol(i, rest)
