@@ -133,6 +133,6 @@ fn musculotendon_scene_state_is_unchanged() {
     use hill_muscle::fmus::musculotendon1d::MusculotendonModel;
     check(
         &[golden::<MusculotendonModel<HillMusculotendon1D>>(40)],
-        &[("HillMusculotendon1D", 771, 0xf320a73c3f370806)],
+        &[("HillMusculotendon1D", 771, 0x8a5e19b817a3179f)],
     );
 }

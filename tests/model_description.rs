@@ -231,6 +231,6 @@ fn the_musculotendon_model_description_is_committed_and_valid() {
     }
     assert_eq!(
         guid::<Musculotendon>(),
-        "{b1c528e8-de0f-8367-9eca-529cc95591e3}"
+        "{a3d0017f-7000-8312-9bbe-7628b8c25047}"
     );
 }

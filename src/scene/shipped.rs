@@ -423,7 +423,7 @@ impl crate::scene::Scene for HillMusculotendon1D {
             crate::scene::Setting { name: "activation_dynamics", value: crate::scene::Value::Boolean(true), constant: false },
             crate::scene::Setting { name: "initial_activation", value: crate::scene::Value::Real(0.0), constant: false },
             crate::scene::Setting { name: "adaptive_substeps", value: crate::scene::Value::Boolean(true), constant: false },
-            crate::scene::Setting { name: "substep_tolerance", value: crate::scene::Value::Real(2e-5), constant: false },
+            crate::scene::Setting { name: "substep_tolerance", value: crate::scene::Value::Real(0.001), constant: false },
         ],
         default_experiment: (0.0, 2.5, 0.001),
     };
