@@ -9,8 +9,10 @@
 //! muscle's length for `HillMuscle1D` (as `benches/step.rs`), of the path
 //! around its rest path L_TS + L0 for the unit. The unit runs with a
 //! compliant tendon (ε0 = 0.04, the scene's), a near-rigid one (ε0 = 1e-4)
-//! and a rigid one (`compliant_tendon` false); all four run alternately in
-//! one process, so that they see the same machine load. Also counted
+//! and a rigid one (`compliant_tendon` false), at `HillMuscle1D`'s
+//! `substep_tolerance` (1e-3, like with like), and the compliant one at its
+//! scene's default tolerance; all five run alternately in one process, so
+//! that they see the same machine load. Also counted
 //! in-process on the same loop: the evaluations of the muscle's piece law
 //! per step (pieces tried, plus the equilibrium's evaluations for the unit).
 //!
@@ -37,30 +39,44 @@ const REPEATS: usize = 7;
 const MT_L0: f64 = 0.1102;
 const MT_LTS: f64 = 0.2723;
 
-/// One case: which FMU, its rest length (muscle or path) and the tendon's
-/// setting (`None`: the plain muscle; `Some(None)`: rigid; `Some(Some(ε0))`).
+/// `HillMuscle1D`'s default `substep_tolerance`.
+const MUSCLE_TOLERANCE: f64 = 1e-3;
+
+/// One case: which FMU, its rest length (muscle or path), the tendon's
+/// setting (`None`: the plain muscle; `Some(None)`: rigid; `Some(Some(ε0))`)
+/// and the unit's `substep_tolerance` (`None`: the scene's default).
 #[derive(Clone, Copy)]
 struct Case {
     name: &'static str,
     tendon: Option<Option<f64>>,
+    tolerance: Option<f64>,
 }
 
-const CASES: [Case; 4] = [
+const CASES: [Case; 5] = [
     Case {
         name: "HillMuscle1D",
         tendon: None,
+        tolerance: None,
     },
     Case {
         name: "HillMusculotendon1D, compliant ε0 = 0.04",
         tendon: Some(Some(0.04)),
+        tolerance: Some(MUSCLE_TOLERANCE),
     },
     Case {
         name: "HillMusculotendon1D, near-rigid ε0 = 1e-4",
         tendon: Some(Some(1e-4)),
+        tolerance: Some(MUSCLE_TOLERANCE),
     },
     Case {
         name: "HillMusculotendon1D, rigid (compliant_tendon false)",
         tendon: Some(None),
+        tolerance: Some(MUSCLE_TOLERANCE),
+    },
+    Case {
+        name: "HillMusculotendon1D, compliant ε0 = 0.04, the scene's default substep_tolerance",
+        tendon: Some(Some(0.04)),
+        tolerance: None,
     },
 ];
 
@@ -93,11 +109,15 @@ fn time_fmi(case: Case, api: &Api, steps: usize, h: f64) -> (f64, f64) {
         Some(t) => {
             let eps = vr::<Musculotendon>("tendon_strain_at_F0");
             let compliant = vr::<Musculotendon>("compliant_tendon");
+            let mut reals = vec![(eps, t.unwrap_or(0.04))];
+            if let Some(tol) = case.tolerance {
+                reals.push((vr::<Musculotendon>("substep_tolerance"), tol));
+            }
             (
                 Instance::with_settings(
                     api,
                     &guid::<Musculotendon>(),
-                    &[(eps, t.unwrap_or(0.04))],
+                    &reals,
                     &[(compliant, t.is_some())],
                 ),
                 [
@@ -150,6 +170,9 @@ fn evaluations(case: Case, steps: usize, h: f64) -> (f64, f64) {
             m.set_real(id("tendon_strain_at_F0"), t.unwrap_or(0.04))
                 .unwrap();
             m.set_boolean(id("compliant_tendon"), t.is_some()).unwrap();
+            if let Some(tol) = case.tolerance {
+                m.set_real(id("substep_tolerance"), tol).unwrap();
+            }
             m.initialize().unwrap();
             let force: VarMt = id("force");
             for i in 0..steps {
@@ -174,7 +197,7 @@ fn main() {
         let mut runs = vec![Vec::new(); CASES.len()];
         let mut ratios = vec![Vec::new(); CASES.len()];
         for _ in 0..REPEATS {
-            let mut this = [0.0; 4];
+            let mut this = [0.0; CASES.len()];
             for (k, &case) in CASES.iter().enumerate() {
                 let api = if case.tendon.is_some() { &unit } else { &plain };
                 this[k] = time_fmi(case, api, steps, h).0;

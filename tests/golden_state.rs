@@ -133,7 +133,7 @@ fn musculotendon_scene_state_is_unchanged() {
     use hill_muscle::fmus::musculotendon1d::MusculotendonModel;
     check(
         &[golden::<MusculotendonModel<HillMusculotendon1D>>(40)],
-        &[("HillMusculotendon1D", 747, 0x88dc3f1a58083505)],
+        &[("HillMusculotendon1D", 771, 0x8a5e19b817a3179f)],
     );
 }
 

@@ -93,13 +93,52 @@ impl PartialEq for Diagnostic {
     }
 }
 
-/// What the first guess of a piece's fibre stretch extrapolates from (the
-/// last step's rates and dλ/dℓ).
+/// What the first guess of a piece's fibre stretch extrapolates from: the
+/// last step's dλ/dℓ, and the mean rates of λ and of the path over the
+/// last step (1/s, m/s) with their changes from the step before (1/s², m/s²)
+/// and that step's length `span` (s; 0 after initialization, when the
+/// rates and their changes are 0).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Guess {
     pub(crate) slope: f64,
     pub(crate) fibre_rate: f64,
     pub(crate) path_rate: f64,
+    pub(crate) fibre_accel: f64,
+    pub(crate) path_accel: f64,
+    pub(crate) span: f64,
+}
+
+impl Guess {
+    /// The guess after a step of length `h` that moved λ by `dlambda` and
+    /// the path by `dpath`: the mean rates over it, and their change from
+    /// the last step's per time between the two steps' midpoints.
+    fn after(&self, slope: f64, h: f64, dlambda: f64, dpath: f64) -> Guess {
+        let (fibre_rate, path_rate) = (dlambda / h, dpath / h);
+        let (fibre_accel, path_accel) = if self.span > 0.0 {
+            let mid = 0.5 * (h + self.span);
+            (
+                (fibre_rate - self.fibre_rate) / mid,
+                (path_rate - self.path_rate) / mid,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        Guess {
+            slope,
+            fibre_rate,
+            path_rate,
+            fibre_accel,
+            path_accel,
+            span: h,
+        }
+    }
+
+    /// The change of a quantity from `t0` to `t1` (s into the step) whose
+    /// rate was `rate` at the last step's midpoint and changes by `accel`
+    /// per second: the integral of the rate extrapolated linearly.
+    fn change(&self, rate: f64, accel: f64, t0: f64, t1: f64) -> f64 {
+        (t1 - t0) * (rate + 0.5 * accel * (t0 + t1 + self.span))
+    }
 }
 
 /// The pieces' ends of a step of length `h` on a path from `from` to `to`:
@@ -156,13 +195,17 @@ fn unsolvable(e: EquilibriumError<Discard>, path: f64) -> Discard {
 impl PieceEnd for PathEnds<'_> {
     const COUPLED: bool = true;
 
-    /// The first guess: the last step's fibre rate over the piece, plus
-    /// dλ/dℓ times the path's change beyond its last rate.
+    /// The first guess: λ's change over the piece extrapolated (its rate
+    /// linear in time through the last two steps' mean rates), plus dλ/dℓ
+    /// times the path's change beyond its own extrapolation (second order
+    /// in the step for smooth inputs: the cost, not the result).
     fn stretch(&self, lambda: f64, from: f64, frac: f64, last: bool) -> f64 {
         let g = &self.guess;
-        let hs = (frac - from) * self.h;
+        let (t0, t1) = (from * self.h, frac * self.h);
         let dpath = self.path(frac, last) - self.path(from, false);
-        lambda + g.fibre_rate * hs + g.slope * (dpath - g.path_rate * hs)
+        let fibre = g.change(g.fibre_rate, g.fibre_accel, t0, t1);
+        let path = g.change(g.path_rate, g.path_accel, t0, t1);
+        lambda + fibre + g.slope * (dpath - path)
     }
 
     /// The equilibrium at the piece's path; d λ/d(path input) is
@@ -416,11 +459,12 @@ impl<C: Components> Musculotendon1D<C> {
                 "non-finite tendon force or derivative at path length {path} m"
             )));
         }
-        let guess = Guess {
-            slope: dlambda[IN_LENGTH],
-            fibre_rate: (u.lambda - self.muscle.lambda) / h,
-            path_rate: (path - self.committed_path) / h,
-        };
+        let guess = self.guess.after(
+            dlambda[IN_LENGTH],
+            h,
+            u.lambda - self.muscle.lambda,
+            path - self.committed_path,
+        );
         self.muscle.length = Some(u.lambda * self.muscle.l0);
         self.muscle
             .finish_step(&u, a, h, decay, outputs, jacobian, stats);

@@ -33,8 +33,9 @@ wire_struct! {
         path_rate: f64,
         /// The path length at the end of the last step.
         committed_path: f64,
-        /// The next step's first guess: dλ/dℓ, the fibre and path rates.
-        guess: [f64; 3],
+        /// The next step's first guess: dλ/dℓ, the fibre and path rates,
+        /// their changes and the last step's length.
+        guess: [f64; 6],
         /// Force, stress, fibre length, tendon strain, pennation.
         outputs: [f64; 5],
         /// dF_T/d(activation command, path length).
@@ -54,7 +55,14 @@ pub(super) fn encode<S: Scene>(m: &MusculotendonModel<S>, out: &mut Vec<u8>) {
         path: MaybeF64(u.path),
         path_rate: u.path_rate,
         committed_path: u.committed_path,
-        guess: [u.guess.slope, u.guess.fibre_rate, u.guess.path_rate],
+        guess: [
+            u.guess.slope,
+            u.guess.fibre_rate,
+            u.guess.path_rate,
+            u.guess.fibre_accel,
+            u.guess.path_accel,
+            u.guess.span,
+        ],
         outputs: u.outputs,
         dforce: u.dforce,
     };
@@ -102,6 +110,9 @@ fn restore<S: Scene>(s: MusculotendonState) -> Result<MusculotendonModel<S>, Str
         slope: guess[0],
         fibre_rate: guess[1],
         path_rate: guess[2],
+        fibre_accel: guess[3],
+        path_accel: guess[4],
+        span: guess[5],
     };
     u.outputs = outputs;
     u.dforce = dforce;
