@@ -123,13 +123,26 @@ impl Guess {
         } else {
             (0.0, 0.0)
         };
-        Guess {
+        let guess = Guess {
             slope,
             fibre_rate,
             path_rate,
             fibre_accel,
             path_accel,
             span: h,
+        };
+        // A step so short that a change over it overflows (h = 5e-324)
+        // leaves no rates: the next step guesses as after initialization.
+        if [fibre_rate, path_rate, fibre_accel, path_accel]
+            .iter()
+            .all(|x| x.is_finite())
+        {
+            guess
+        } else {
+            Guess {
+                slope: if slope.is_finite() { slope } else { 0.0 },
+                ..Guess::default()
+            }
         }
     }
 

@@ -415,3 +415,41 @@ fn a_smooth_path_costs_two_evaluations_per_piece() {
         assert!(per_piece <= 2.5, "ε0 {eps0}: {per_piece}");
     }
 }
+
+/// Found by the API-abuse harness: a step of h = 5e-324 (finite, > 0)
+/// after the path moved to slack completes (the tendon carries nothing),
+/// and the guess's rates (a change over h) overflowed and were committed,
+/// so the unit's own state did not deserialize. A guess that overflows is
+/// not kept: the next step starts from no rates, as after initialization.
+#[test]
+fn a_tiny_step_commits_a_finite_guess() {
+    let mut completed = 0;
+    for (u, factor) in [(0.0, 0.8), (0.0, 1.2), (1.0, 0.8)] {
+        let mut mt = unit(0.04, 0.0, true);
+        let rest = mt.path();
+        mt.set_command(u);
+        mt.set_path(factor * rest);
+        if mt.step(5e-324).is_ok() {
+            let g = mt.guess;
+            for x in [
+                g.slope,
+                g.fibre_rate,
+                g.path_rate,
+                g.fibre_accel,
+                g.path_accel,
+                g.span,
+            ] {
+                assert!(x.is_finite(), "{u} {factor}: {g:?}");
+            }
+            mt.check_committed_outputs().unwrap();
+            completed += 1;
+        }
+        // The next step is an ordinary one.
+        mt.set_path(rest);
+        mt.step(1e-3).unwrap();
+    }
+    assert!(
+        completed > 0,
+        "no tiny step completed: the case is not exercised"
+    );
+}
