@@ -247,7 +247,21 @@ impl Muscle {
     /// passive state, while the force-velocity relation regularises the
     /// rate-dependent one. The counts are summed over the relaxation steps
     /// and the final solve.
+    ///
+    /// The pseudo-time steps use the force-velocity constants (k_c, k_e, d,
+    /// λ̇m^min) at their defaults, not the muscle's: the steady state does
+    /// not depend on them (f_v = 1), and the path to it must not either, so
+    /// that the initial state is a function of the parameters it depends on
+    /// (the final solve stops within its tolerance of where it starts).
     fn relax_isometric(&self, p: &Params, activation: f64) -> Result<(Muscle, Solution), String> {
+        let default = Params::default();
+        let pseudo = Params {
+            kc: default.kc,
+            ke: default.ke,
+            d: default.d,
+            lambda_dot_min: default.lambda_dot_min,
+            ..*p
+        };
         let mut m = self.clone();
         let mut h = 1e-3;
         let mut steps = 0;
@@ -262,7 +276,7 @@ impl Muscle {
             } else {
                 (activation, activation)
             };
-            let r = m.advance(p, m.length, h, &|tau| a0 + (a1 - a0) * tau / h)?;
+            let r = m.advance(&pseudo, m.length, h, &|tau| a0 + (a1 - a0) * tau / h)?;
             steps += 1;
             iterations += r.iterations;
             factorizations += r.factorizations;

@@ -396,3 +396,33 @@ fn large_smooth_steps_take_few_newton_iterations() {
         m = r.muscle;
     }
 }
+
+/// The activated initialization is a function of the parameters its steady
+/// state depends on (λ̇m = 0, f_v = 1): changing a force-velocity constant
+/// (k_c, k_e, d, λ̇m^min) leaves the initial positions bit for bit, at L0
+/// (the relaxation) and 1.1 L0, as the model descriptions declare.
+#[test]
+fn the_activated_initialization_does_not_depend_on_the_force_velocity_law() {
+    let d = specimen(4, 1);
+    for length in [0.05, 0.055] {
+        let p = Params::default();
+        let (m, _) = Muscle::isometric(d.clone(), &p, length, 0.5).unwrap();
+        let changes: [fn(&mut Params); 4] = [
+            |q| q.kc *= 1.5,
+            |q| q.ke *= 1.5,
+            |q| q.d *= 1.1,
+            |q| q.lambda_dot_min *= 2.0,
+        ];
+        for change in changes {
+            let mut q = p;
+            change(&mut q);
+            let (n, _) = Muscle::isometric(d.clone(), &q, length, 0.5).unwrap();
+            assert!(
+                n.x.iter()
+                    .zip(&m.x)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "length {length}: the initial positions moved with a force-velocity constant"
+            );
+        }
+    }
+}
