@@ -15,8 +15,12 @@
 //!
 //! Part 2: [`Muscle::isometric`] (the FMU's initialization) on the default
 //! mesh at rest length with levels 0.5 and 1 and at 1.1 L0 with 0.5: wall
-//! time (median and range of `--runs`, default 3), the force, and which
-//! factorisation the equilibrium's tangent gets.
+//! time (median and range of `--runs`, default 3), its counted work (linear
+//! solves, residual evaluations, factorisations: deterministic), the force,
+//! and which factorisation the equilibrium's tangent gets. With
+//! `HM_DUMP=DIR` each case writes its force and positions (one value a
+//! line, full digits) to `DIR/x_<L/L0>_<level>.txt`, to compare two builds'
+//! equilibria. `--case L/L0,level` (repeatable) replaces the three cases.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -90,17 +94,38 @@ fn main() {
     }
     println!();
     println!("Muscle::isometric on the default mesh, {runs} runs");
-    println!("| L/L0 | level | median s | range s | force N | tangent at the equilibrium |");
-    println!("|---|---|---|---|---|---|");
-    for (stretch, level) in [(1.0, 0.5), (1.0, 1.0), (1.1, 0.5)] {
+    println!("| L/L0 | level | median s | range s | solves | residuals | factorisations | force N | tangent at the equilibrium |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let cases: Vec<(f64, f64)> = args
+        .iter()
+        .zip(args.iter().skip(1))
+        .filter(|(flag, _)| *flag == "--case")
+        .map(|(_, v)| {
+            let (l, a) = v.split_once(',').expect("--case L/L0,level");
+            (l.parse().expect("L/L0"), a.parse().expect("level"))
+        })
+        .collect();
+    let cases = if cases.is_empty() {
+        vec![(1.0, 0.5), (1.0, 1.0), (1.1, 0.5)]
+    } else {
+        cases
+    };
+    for (stretch, level) in cases {
         let mut times = Vec::new();
         let mut force = 0.0;
         let mut kind = None;
+        let mut work = (0, 0, 0);
         for _ in 0..runs {
             let t = Instant::now();
             let (m, s) = Muscle::isometric(d.clone(), &p, stretch * L0, level).unwrap();
             times.push(t.elapsed().as_secs_f64());
             force = d.reaction(&s.evaluation.forces);
+            if let Ok(dir) = std::env::var("HM_DUMP") {
+                let text: Vec<String> = m.x.iter().map(|v| format!("{v:e}")).collect();
+                let file = format!("{dir}/x_{stretch}_{level}.txt");
+                std::fs::write(file, format!("{force:e}\n{}", text.join("\n"))).unwrap();
+            }
+            work = (s.iterations, s.residuals, s.factorizations);
             let tangent = m.tangent.as_ref().map(|c| c.tangent(&d, &p));
             kind = tangent.map(|t| t.map(|t| t.factor.kind()));
         }
@@ -108,8 +133,11 @@ fn main() {
             .iter()
             .fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
         println!(
-            "| {stretch} | {level} | {:.2} | {lo:.2}–{hi:.2} | {force:.9} | {kind:?} |",
-            median(times)
+            "| {stretch} | {level} | {:.3} | {lo:.3}–{hi:.3} | {} | {} | {} | {force:.9} | {kind:?} |",
+            median(times),
+            work.0,
+            work.1,
+            work.2
         );
     }
 }

@@ -28,7 +28,9 @@
 //! deterministic; they say what the times are made of.
 //!
 //! `--runs N` (default 3) repeats each row and reports the median of the runs'
-//! figures; `--only NAME` runs one workload once (for `perf record`).
+//! figures; `--only NAME` runs one workload once (for `perf record`);
+//! `--in-process` prints only the in-process table (no FMU needed), with the
+//! mean and median wall time of the step map's steps and the force in full.
 
 use std::ffi::c_uint;
 use std::time::Instant;
@@ -117,9 +119,13 @@ fn init(api: &cabi::Api) -> f64 {
     s
 }
 
+/// One in-process step: wall time [s], linear solves, factorisations.
+type StepWork = (f64, usize, usize);
+
 /// Per step of one in-process run: linear solves, residual evaluations,
-/// factorisations, substeps (means), and the force at the end.
-fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64) {
+/// factorisations, substeps (means), the force at the end, and each step's
+/// [`StepWork`].
+fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64, Vec<StepWork>) {
     let p = Params::default();
     let d = discretization(
         None,
@@ -133,12 +139,19 @@ fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64) {
     let (mut m, _) = Muscle::isometric(d, &p, L0, 0.0).expect("rest");
     let steps = (duration / h).round() as usize;
     let (mut sum, mut a0, mut force) = ([0usize; 4], 0.0, f64::NAN);
+    let mut times = Vec::with_capacity(steps);
     for i in 0..steps {
         let (u, l) = inputs((i + 1) as f64 * h);
         let level = StepLevel::new(true, p.s, a0, u, 0.0, h, (-p.s * h).exp());
+        let t = Instant::now();
         let adv = m
             .advance(&p, l, h, &|tau| level.at(tau))
             .expect("the workload's step");
+        times.push((
+            t.elapsed().as_secs_f64(),
+            adv.iterations,
+            adv.factorizations,
+        ));
         sum[0] += adv.iterations;
         sum[1] += adv.residuals;
         sum[2] += adv.factorizations;
@@ -147,7 +160,60 @@ fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64) {
         a0 = level.end;
         m = adv.muscle;
     }
-    (sum.map(|c| c as f64 / steps as f64), force)
+    (sum.map(|c| c as f64 / steps as f64), force, times)
+}
+
+/// The in-process table: the work per step and its wall time.
+fn in_process() {
+    println!("Work per step in-process (the FMU's step map, its defaults)");
+    println!("| workload | h (ms) | solves/step | residuals/step | factorisations/step | substeps/step | mean ms/step | median ms/step | force at the end (N) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let mut kinds = Vec::new();
+    for (name, inputs, duration) in STEPPING {
+        for h in [1e-3, 1e-2, 1e-1] {
+            let ([solves, residuals, factorizations, substeps], force, steps) =
+                counts(inputs, h, duration);
+            let times: Vec<f64> = steps.iter().map(|s| s.0).collect();
+            let [mean, med, ..] = stats(&times, &[0]);
+            println!(
+                "| {name} | {} | {solves:.3} | {residuals:.3} | {factorizations:.3} | {substeps:.3} | {:.3} | {:.3} | {force:.14} |",
+                h * 1e3,
+                mean * 1e3,
+                med * 1e3
+            );
+            if h == 1e-3 {
+                kinds.push((name, steps));
+            }
+        }
+    }
+    println!();
+    println!("The 1 ms steps by their work: share of the steps, mean ms, share of the run's time");
+    println!("| workload | one solve | two solves | three or more solves | with a factorisation |");
+    println!("|---|---|---|---|---|");
+    for (name, steps) in kinds {
+        let total: f64 = steps.iter().map(|s| s.0).sum();
+        let class = |keep: &dyn Fn(usize, usize) -> bool| {
+            let t: Vec<f64> = steps
+                .iter()
+                .filter(|s| keep(s.1, s.2))
+                .map(|s| s.0)
+                .collect();
+            let sum: f64 = t.iter().sum();
+            format!(
+                "{:.1} %, {:.3} ms, {:.1} %",
+                100.0 * t.len() as f64 / steps.len() as f64,
+                1e3 * sum / t.len().max(1) as f64,
+                100.0 * sum / total
+            )
+        };
+        println!(
+            "| {name} | {} | {} | {} | {} |",
+            class(&|s, f| f == 0 && s == 1),
+            class(&|s, f| f == 0 && s == 2),
+            class(&|s, f| f == 0 && s > 2),
+            class(&|_, f| f > 0)
+        );
+    }
 }
 
 const STEPPING: [(&str, Inputs, f64); 2] = [
@@ -163,6 +229,10 @@ fn main() {
             .and_then(|i| args.get(i + 1).cloned())
     };
     let runs: usize = value("--runs").map_or(3, |v| v.parse().expect("--runs N"));
+    if args.iter().any(|a| a == "--in-process") {
+        in_process();
+        return;
+    }
     let api = load("HillMuscleFE");
 
     if let Some(only) = value("--only") {
@@ -211,19 +281,7 @@ fn main() {
         }
     }
     println!();
-    println!("Work per step in-process (the FMU's step map, its defaults)");
-    println!("| workload | h (ms) | solves/step | residuals/step | factorisations/step | substeps/step | force at the end (N) |");
-    println!("|---|---|---|---|---|---|---|");
-    for (name, inputs, duration) in STEPPING {
-        for h in [1e-3, 1e-2, 1e-1] {
-            let ([solves, residuals, factorizations, substeps], force) =
-                counts(inputs, h, duration);
-            println!(
-                "| {name} | {} | {solves:.3} | {residuals:.3} | {factorizations:.3} | {substeps:.3} | {force:.6} |",
-                h * 1e3
-            );
-        }
-    }
+    in_process();
     let t: Vec<f64> = (0..runs).map(|_| init(&api)).collect();
     println!();
     println!(

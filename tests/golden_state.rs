@@ -136,3 +136,15 @@ fn musculotendon_scene_state_is_unchanged() {
         &[("HillMusculotendon1D", 747, 0x88dc3f1a58083505)],
     );
 }
+
+/// `HillMusculotendonFE` after the same fixed run (12 steps, as the FE
+/// scenes; its `length` input the path, starting at the rest path).
+#[cfg(feature = "fe")]
+#[test]
+fn fe_musculotendon_scene_state_is_unchanged() {
+    use hill_muscle::fmus::musculotendonfe::MusculotendonFEModel;
+    check(
+        &[golden::<MusculotendonFEModel<HillMusculotendonFE>>(12)],
+        &[("HillMusculotendonFE", 205695, 0x9690b7322c47b1d2)],
+    );
+}

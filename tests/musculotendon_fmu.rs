@@ -4,7 +4,8 @@
 //! `HillMuscle1D` at length ℓ − L_TS; directional derivatives against finite
 //! differences of the step map; state save/restore and serialization; bad
 //! values of the unit's parameters; a slack tendon; a path jump; the largest
-//! pennation angle (MODEL_NOTES "Musculotendon unit").
+//! pennation angle (MODEL_NOTES "Musculotendon unit"). The last tests run
+//! `HillMusculotendonFE` (on a 6 × 1 mesh) the same way.
 
 use std::ffi::CString;
 use std::marker::PhantomData;
@@ -42,7 +43,22 @@ impl<M: Model> Fmu<M> {
     /// Instantiated, the Real parameters `params` and Booleans `flags` set,
     /// the inputs set, initialized.
     fn new(params: &[(&str, f64)], flags: &[(&str, bool)], u: f64, path: f64) -> Self {
+        Self::new_with(params, &[], flags, u, path)
+    }
+
+    /// [`Self::new`] with the Integer parameters `ints` set too.
+    fn new_with(
+        params: &[(&str, f64)],
+        ints: &[(&str, i32)],
+        flags: &[(&str, bool)],
+        u: f64,
+        path: f64,
+    ) -> Self {
         let f = Self::instantiated();
+        for &(name, v) in ints {
+            let r = vr::<M>(name);
+            f.ok(unsafe { api::set_integer::<M>(f.c, &r, 1, &v) });
+        }
         for &(name, v) in params {
             assert_eq!(
                 f.set(name, v),
@@ -531,6 +547,197 @@ fn past_the_largest_angle_a_step_is_discarded_and_changes_nothing() {
     let lts = f.get("tendon_slack_length");
     let before = f.gets(&OUTPUTS);
     f.book.clear();
+    assert_eq!(f.step(0.0, H, 0.0, lts + 0.001), fmi2Discard);
+    assert!(
+        f.book
+            .entries()
+            .iter()
+            .any(|e| e.message.contains("largest pennation angle")),
+        "{:?}",
+        f.book.entries()
+    );
+    assert_eq!(f.gets(&OUTPUTS), before);
+}
+
+/// `HillMusculotendonFE` on a 6 × 1 mesh (its tests stay fast), with the
+/// Real parameters `params` and Booleans `flags`.
+#[cfg(feature = "fe")]
+fn fe_unit(
+    params: &[(&str, f64)],
+    flags: &[(&str, bool)],
+    u: f64,
+    path: f64,
+) -> Fmu<hill_muscle::fmus::musculotendonfe::MusculotendonFe> {
+    Fmu::new_with(params, &[("n_axial", 6), ("n_radial", 1)], flags, u, path)
+}
+
+/// The FE unit: after every step the outputs satisfy the equilibrium
+/// (force = F_M cos(pennation), F_M = stress · area, below 1e-9 F0, the
+/// FE unit's tolerance) and the path is tendon plus projection; through an
+/// activation rise, a stretch, a path jump and a slack phase.
+#[cfg(feature = "fe")]
+#[test]
+fn fe_the_equilibrium_holds_after_every_step() {
+    let rest = rest_path();
+    for alpha0 in [0.0, 0.4] {
+        let f = fe_unit(&[("pennation_angle", alpha0)], &[], 0.0, rest);
+        let (area, f0) = (f.get("area"), f.get("sigma0") * f.get("area"));
+        let lts = f.get("tendon_slack_length");
+        let mut slack_steps = 0;
+        for (k, i) in (0..500).step_by(10).enumerate() {
+            let (u, path) = protocol(i, rest);
+            f.ok(f.step(k as f64 * H, H, u, path));
+            let [force, stress, l_m, strain, alpha, ..] = f.gets(&OUTPUTS)[..] else {
+                unreachable!()
+            };
+            let residual = stress * area * alpha.cos() - force;
+            assert!(
+                residual.abs() <= 1e-9 * f0,
+                "step {i}: residual {residual:e} N"
+            );
+            let lt = lts * (1.0 + strain);
+            assert!((lt + l_m * alpha.cos() - path).abs() <= 1e-12 * path);
+            if strain < 0.0 {
+                slack_steps += 1;
+                assert_eq!(force, 0.0);
+            }
+        }
+        assert!(slack_steps > 0);
+    }
+}
+
+/// The FE unit with a rigid tendon without pennation is `HillMuscleFE` at
+/// length ℓ − L_TS, bit for bit (force, stress, activation level, and
+/// stiffness = its d force / d length).
+#[cfg(feature = "fe")]
+#[test]
+fn fe_a_rigid_tendon_without_pennation_is_the_plain_muscle() {
+    use hill_muscle::fmus::hillfe::HillFE;
+    let rest = rest_path();
+    let mt = fe_unit(&[], &[("compliant_tendon", false)], 0.0, rest);
+    let (l0, area, lts) = (mt.get("L0"), mt.get("area"), mt.get("tendon_slack_length"));
+    let plain = Fmu::<HillFE>::new_with(
+        &[("L0", l0), ("area", area)],
+        &[("n_axial", 6), ("n_radial", 1)],
+        &[],
+        0.0,
+        rest - lts,
+    );
+    for (k, i) in (0..300).step_by(10).enumerate() {
+        let (u, path) = protocol(i, rest);
+        let path = path.max(rest - 0.01);
+        mt.ok(mt.step(k as f64 * H, H, u, path));
+        plain.ok(plain.step(k as f64 * H, H, u, path - lts));
+        for name in ["force", "stress", "activation_level"] {
+            assert_eq!(
+                mt.get(name).to_bits(),
+                plain.get(name).to_bits(),
+                "step {i}: {name}"
+            );
+        }
+        assert_eq!(mt.get("fibre_length"), path - lts);
+        assert_eq!(
+            mt.get("stiffness").to_bits(),
+            plain.derivative("force", "length").to_bits()
+        );
+    }
+}
+
+/// The FE unit's directional derivatives of force and fibre_length with
+/// respect to both inputs against central differences of the step map
+/// (each side from the state saved before the step); stiffness is d force /
+/// d length.
+#[cfg(feature = "fe")]
+#[test]
+fn fe_directional_derivatives_match_finite_differences_of_the_step_map() {
+    let rest = rest_path();
+    for (alpha0, compliant) in [(0.0, true), (0.4, true), (0.4, false)] {
+        let f = fe_unit(
+            &[("pennation_angle", alpha0)],
+            &[("compliant_tendon", compliant)],
+            0.3,
+            rest + 0.005,
+        );
+        for i in 0..3 {
+            f.ok(f.step(i as f64 * H, H, 0.4, rest + 0.005 + 1e-4 * i as f64));
+        }
+        let (t, u, path) = (3.0 * H, 0.6, rest + 0.0054);
+        let before = f.save();
+        let at = |u: f64, path: f64| -> Vec<f64> {
+            f.restore(before);
+            f.ok(f.step(t, H, u, path));
+            f.gets(&["force", "fibre_length"])
+        };
+        let (dl, du) = (1e-6, 1e-4);
+        let (lp, lm, up, um) = (
+            at(u, path + dl),
+            at(u, path - dl),
+            at(u + du, path),
+            at(u - du, path),
+        );
+        at(u, path);
+        let f0 = f.get("sigma0") * f.get("area");
+        for (k, name, scale) in [(0, "force", f0), (1, "fibre_length", 0.1)] {
+            for (known, fd, step) in [
+                ("length", (lp[k] - lm[k]) / (2.0 * dl), dl),
+                ("activation", (up[k] - um[k]) / (2.0 * du), du),
+            ] {
+                let d = f.derivative(name, known);
+                // Each side solved to ~1e-9 of the output's scale.
+                let tol = 2e-3 * d.abs() + 1e-8 * scale / step;
+                assert!(
+                    (d - fd).abs() <= tol,
+                    "α0 {alpha0} compliant {compliant}: d {name}/d {known} {d} vs fd {fd}"
+                );
+            }
+        }
+        assert_eq!(f.get("stiffness"), f.derivative("force", "length"));
+        f.free_state(before);
+    }
+}
+
+/// The FE unit's state saved, restored and serialized: bit-identical
+/// bytes, and the restored instance steps on as the original.
+#[cfg(feature = "fe")]
+#[test]
+fn fe_state_save_restore_and_serialization_are_bit_identical() {
+    let rest = rest_path();
+    let f = fe_unit(&[("pennation_angle", 0.3)], &[], 0.5, rest);
+    for i in 0..3 {
+        f.ok(f.step(i as f64 * H, H, 0.7, rest + 2e-4 * i as f64));
+    }
+    let s = f.save();
+    let bytes = f.serialize(s);
+    f.ok(f.step(3.0 * H, H, 0.9, rest + 1e-3));
+    let after = f.state_bytes();
+    let back = f.deserialize(&bytes);
+    f.restore(back);
+    assert!(
+        f.state_bytes() == bytes,
+        "the restored state's bytes differ"
+    );
+    f.ok(f.step(3.0 * H, H, 0.9, rest + 1e-3));
+    assert!(
+        f.state_bytes() == after,
+        "the restored unit steps on differently"
+    );
+    f.free_state(s);
+    f.free_state(back);
+}
+
+/// The FE unit past the largest pennation angle: a discard that changes
+/// nothing.
+#[cfg(feature = "fe")]
+#[test]
+fn fe_past_the_largest_angle_a_step_is_discarded_and_changes_nothing() {
+    let f = fe_unit(
+        &[("pennation_angle", 1.0)],
+        &[("compliant_tendon", false)],
+        0.0,
+        rest_path(),
+    );
+    let lts = f.get("tendon_slack_length");
+    let before = f.gets(&OUTPUTS);
     assert_eq!(f.step(0.0, H, 0.0, lts + 0.001), fmi2Discard);
     assert!(
         f.book

@@ -37,6 +37,7 @@ pub fn rust_source(type_name: &str, spec: &SceneSpec) -> String {
         Variant::OneD => "OneD",
         Variant::Fe => "Fe",
         Variant::Musculotendon1D => "Musculotendon1D",
+        Variant::MusculotendonFe => "MusculotendonFe",
     };
     let _ = writeln!(s, "        variant: crate::scene::Variant::{v},");
     let _ = writeln!(s, "        components: crate::scene::Components {{");
@@ -90,6 +91,9 @@ fn model_type(type_name: &str, spec: &SceneSpec) -> String {
         Variant::Fe => format!("crate::fmus::hillfe::HillFEModel<{type_name}>"),
         Variant::Musculotendon1D => {
             format!("crate::fmus::musculotendon1d::MusculotendonModel<{type_name}>")
+        }
+        Variant::MusculotendonFe => {
+            format!("crate::fmus::musculotendonfe::MusculotendonFEModel<{type_name}>")
         }
     }
 }

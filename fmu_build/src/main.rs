@@ -81,6 +81,16 @@ fn describe(spec: &SceneSpec) -> (String, String) {
                 fmus::hill1d::LAW_HTML
             ),
         ),
+        Variant::MusculotendonFe => describe_table(
+            &fmus::musculotendon1d::info_for(spec),
+            &fmus::musculotendonfe::scene_variables(spec),
+            &format!(
+                "{}{}{}",
+                fmus::musculotendonfe::MTFE_HTML,
+                fmus::hillfe::FE_HTML,
+                fmus::hill1d::LAW_HTML
+            ),
+        ),
     }
 }
 
@@ -132,7 +142,7 @@ fn build_library(spec: &SceneSpec, root: &Path) -> Result<PathBuf, String> {
     }
     let features = match spec.variant {
         Variant::OneD | Variant::Musculotendon1D => "export-scene",
-        Variant::Fe => "export-scene,fe",
+        Variant::Fe | Variant::MusculotendonFe => "export-scene,fe",
     };
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)
@@ -231,6 +241,9 @@ fn run() -> Result<(), String> {
                     Variant::Fe => spec.variables(fmus::hillfe::all_variables()).len(),
                     Variant::Musculotendon1D => {
                         fmus::musculotendon1d::scene_variables(&spec).len()
+                    }
+                    Variant::MusculotendonFe => {
+                        fmus::musculotendonfe::scene_variables(&spec).len()
                     }
                 }
             );

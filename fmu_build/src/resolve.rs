@@ -12,12 +12,17 @@
 
 use hill_muscle::fe::mesh::{Grading, Resolution, LEVELS, LUMPED, LUMPED_GRADING};
 use hill_muscle::fmi2::{Causality, ScalarVariable, VarType};
-use hill_muscle::fmus::{hill1d, hillfe, musculotendon1d};
+use hill_muscle::fmus::{hill1d, hillfe, musculotendon1d, musculotendonfe};
 use hill_muscle::law::params::Bound;
 use hill_muscle::scene::{Components, Inputs, SceneSpec, Setting, Value, Variant};
 
 /// The variants a scene can name, with their names in scene files.
-pub const VARIANTS: [Variant; 3] = [Variant::OneD, Variant::Fe, Variant::Musculotendon1D];
+pub const VARIANTS: [Variant; 4] = [
+    Variant::OneD,
+    Variant::Fe,
+    Variant::Musculotendon1D,
+    Variant::MusculotendonFe,
+];
 
 /// The name of `variant` in scene files.
 pub fn variant_name(variant: Variant) -> &'static str {
@@ -25,6 +30,7 @@ pub fn variant_name(variant: Variant) -> &'static str {
         Variant::OneD => "1d",
         Variant::Fe => "fe",
         Variant::Musculotendon1D => "musculotendon_1d",
+        Variant::MusculotendonFe => "musculotendon_fe",
     }
 }
 
@@ -123,6 +129,7 @@ fn catalogue(variant: Variant) -> Vec<(&'static str, Causality, VarType)> {
         Variant::OneD => rows(hill1d::all_variables()),
         Variant::Fe => rows(hillfe::all_variables()),
         Variant::Musculotendon1D => rows(musculotendon1d::all_variables()),
+        Variant::MusculotendonFe => rows(musculotendonfe::all_variables()),
     }
 }
 
@@ -345,7 +352,7 @@ impl Draft {
                 ));
             }
             (Variant::OneD | Variant::Musculotendon1D, None) => {}
-            (Variant::Fe, m) => {
+            (Variant::Fe | Variant::MusculotendonFe, m) => {
                 let name = m.as_deref().unwrap_or("lumped");
                 match MESH_LEVELS.iter().find(|l| l.name == name) {
                     Some(&level) => mesh_level = Some(level),
@@ -478,7 +485,7 @@ impl Draft {
                     .into(),
             );
         }
-        if variant == Variant::Fe {
+        if matches!(variant, Variant::Fe | Variant::MusculotendonFe) {
             for (name, on) in [
                 ("parallel_element", c.parallel),
                 ("matrix", c.matrix),
@@ -487,9 +494,10 @@ impl Draft {
             ] {
                 if !on {
                     errors.push(format!(
-                        "components.{name} = false is not available in the fe variant: its solver \
+                        "components.{name} = false is not available in the {} variant: its solver \
                          (src/fe) evaluates the complete law (leave out the contractile element, \
-                         the activation dynamics, inputs and outputs instead)"
+                         the activation dynamics, inputs and outputs instead)",
+                        variant_name(variant)
                     ));
                 }
             }

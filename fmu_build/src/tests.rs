@@ -33,6 +33,7 @@ fn every_shipped_scene_resolves_and_the_required_ones_are_there() {
         "HillIsometric1D",
         "HillActuator1D",
         "HillMusculotendon1D",
+        "HillMusculotendonFE",
     ] {
         assert!(ids.contains(&id), "{id} missing from {ids:?}");
     }

@@ -16,6 +16,7 @@ pub mod element;
 pub mod memory;
 pub mod mesh;
 pub mod muscle;
+pub mod musculotendon;
 pub mod newton;
 pub mod step_map;
 pub mod tangent;

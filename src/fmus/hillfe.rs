@@ -162,7 +162,7 @@ fn state_deps() -> Vec<Var> {
 /// The Real outputs: the FE muscle's quantities, in table order.
 pub use crate::fe::step_map::Quantity as Output;
 
-mod state;
+pub(crate) mod state;
 
 /// The outputs' rows, in [`Output`] order.
 const OUTPUTS: [(Output, Row<Var>); N_QUANTITIES] = [
@@ -244,7 +244,7 @@ const OUTPUTS: [(Output, Row<Var>); N_QUANTITIES] = [
 /// declared ranges, both gradings in theirs (the message naming the
 /// parameter), and the mesh's estimated peak memory within the FE muscle's
 /// budget ([`crate::fe::memory`]).
-fn check_mesh(
+pub(crate) fn check_mesh(
     n_axial: i32,
     n_radial: i32,
     fibre_layout: i32,

@@ -5,4 +5,6 @@ pub mod hill1d;
 #[cfg(feature = "fe")]
 pub mod hillfe;
 pub mod musculotendon1d;
+#[cfg(feature = "fe")]
+pub mod musculotendonfe;
 pub mod table;

@@ -44,6 +44,9 @@ pub enum Variant {
     /// The 1D muscle in series with a tendon at a pennation angle, driven
     /// by its path length (MODEL_NOTES "Musculotendon unit").
     Musculotendon1D,
+    /// The FE muscle in series with a tendon at a pennation angle, driven
+    /// by its path length (MODEL_NOTES "Musculotendon unit").
+    MusculotendonFe,
 }
 
 /// The components of the law a scene includes (MODEL_NOTES "Energy and

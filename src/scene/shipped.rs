@@ -429,6 +429,74 @@ impl crate::scene::Scene for HillMusculotendon1D {
     };
 }
 
+// From fmu_build/scenes/musculotendon_fe.toml.
+/// Scene `HillMusculotendonFE`: Lu et al. (2011) muscle in series with a compliant tendon at a pennation angle, lumped 3D finite-element muscle, driven by its path length (biceps brachii long head)
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HillMusculotendonFE;
+
+impl crate::scene::Scene for HillMusculotendonFE {
+    const SPEC: crate::scene::SceneSpec = crate::scene::SceneSpec {
+        model_identifier: "HillMusculotendonFE",
+        description: "Lu et al. (2011) muscle in series with a compliant tendon at a pennation angle, lumped 3D finite-element muscle, driven by its path length (biceps brachii long head)",
+        variant: crate::scene::Variant::MusculotendonFe,
+        components: crate::scene::Components {
+            activation_dynamics: true,
+            contractile: true,
+            fv_shortening: true,
+            fv_lengthening: true,
+            series: true,
+            parallel: true,
+            matrix: true,
+            volumetric: true,
+        },
+        inputs: crate::scene::Inputs {
+            activation: true,
+            length: true,
+        },
+        outputs: &[
+            "force",
+            "stress",
+            "fibre_length",
+            "tendon_strain",
+            "pennation",
+            "activation_level",
+            "stiffness",
+        ],
+        parameters: &[
+            crate::scene::Setting { name: "b", value: crate::scene::Value::Real(23.46), constant: false },
+            crate::scene::Setting { name: "c", value: crate::scene::Value::Real(379.0), constant: false },
+            crate::scene::Setting { name: "alpha", value: crate::scene::Value::Real(10.0), constant: false },
+            crate::scene::Setting { name: "beta", value: crate::scene::Value::Real(1000.0), constant: false },
+            crate::scene::Setting { name: "A", value: crate::scene::Value::Real(4.0), constant: false },
+            crate::scene::Setting { name: "sigma0", value: crate::scene::Value::Real(700000.0), constant: false },
+            crate::scene::Setting { name: "S", value: crate::scene::Value::Real(50.0), constant: false },
+            crate::scene::Setting { name: "kc", value: crate::scene::Value::Real(5.0), constant: false },
+            crate::scene::Setting { name: "ke", value: crate::scene::Value::Real(5.0), constant: false },
+            crate::scene::Setting { name: "d", value: crate::scene::Value::Real(1.5), constant: false },
+            crate::scene::Setting { name: "lambda_dot_min", value: crate::scene::Value::Real(-17.0), constant: false },
+            crate::scene::Setting { name: "lambda_opt", value: crate::scene::Value::Real(1.05), constant: false },
+            crate::scene::Setting { name: "D", value: crate::scene::Value::Real(1e-9), constant: false },
+            crate::scene::Setting { name: "k", value: crate::scene::Value::Real(0.3), constant: false },
+            crate::scene::Setting { name: "L0", value: crate::scene::Value::Real(0.1102), constant: false },
+            crate::scene::Setting { name: "area", value: crate::scene::Value::Real(0.0008919), constant: false },
+            crate::scene::Setting { name: "tendon_slack_length", value: crate::scene::Value::Real(0.2723), constant: false },
+            crate::scene::Setting { name: "tendon_strain_at_F0", value: crate::scene::Value::Real(0.04), constant: false },
+            crate::scene::Setting { name: "pennation_angle", value: crate::scene::Value::Real(0.0), constant: false },
+            crate::scene::Setting { name: "compliant_tendon", value: crate::scene::Value::Boolean(true), constant: false },
+            crate::scene::Setting { name: "activation_dynamics", value: crate::scene::Value::Boolean(true), constant: false },
+            crate::scene::Setting { name: "initial_activation", value: crate::scene::Value::Real(0.0), constant: false },
+            crate::scene::Setting { name: "adaptive_substeps", value: crate::scene::Value::Boolean(false), constant: false },
+            crate::scene::Setting { name: "substep_tolerance", value: crate::scene::Value::Real(0.001), constant: false },
+            crate::scene::Setting { name: "n_axial", value: crate::scene::Value::Integer(16), constant: false },
+            crate::scene::Setting { name: "n_radial", value: crate::scene::Value::Integer(3), constant: false },
+            crate::scene::Setting { name: "axial_grading", value: crate::scene::Value::Real(0.9), constant: false },
+            crate::scene::Setting { name: "radial_grading", value: crate::scene::Value::Real(0.6), constant: false },
+            crate::scene::Setting { name: "fibre_layout", value: crate::scene::Value::Integer(0), constant: false },
+        ],
+        default_experiment: (0.0, 2.5, 0.001),
+    };
+}
+
 // From fmu_build/scenes/passive_1d.toml.
 /// Scene `HillPassive1D`: Lu et al. (2011) muscle, 1D, passive elongation: matrix, parallel element and volumetric term only
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -232,7 +232,7 @@ fn every_parse_level_problem_is_named_in_one_report() {
         "line 3: unknown field `varaint` at the top level; allowed: model_identifier, \
          description, variant, inputs, outputs, components, parameters, constants, fe, \
          default_experiment",
-        "line 4: unknown variant `2d`; allowed: 1d, fe, musculotendon_1d",
+        "line 4: unknown variant `2d`; allowed: 1d, fe, musculotendon_1d, musculotendon_fe",
         "line 5: inputs = \"length\": must be an array of strings",
         "line 10: unknown field `matrx` in [components]; allowed: activation_dynamics, \
          contractile_element, fv_shortening, fv_lengthening, series_element, \
@@ -257,7 +257,7 @@ fn each_parse_level_problem_is_named_with_its_line() {
         ),
         (
             with("variant = \"1d\"\n", ""),
-            "missing field `variant` at the top level: one of \"1d\", \"fe\", \"musculotendon_1d\"",
+            "missing field `variant` at the top level: one of \"1d\", \"fe\", \"musculotendon_1d\", \"musculotendon_fe\"",
         ),
         (
             with("outputs = [\"force\"]\n", ""),
@@ -298,7 +298,7 @@ fn each_parse_level_problem_is_named_with_its_line() {
         ),
         (
             with(r#"variant = "1d""#, "variant = 1"),
-            "line 4: variant = 1: must be one of \"1d\", \"fe\", \"musculotendon_1d\"",
+            "line 4: variant = 1: must be one of \"1d\", \"fe\", \"musculotendon_1d\", \"musculotendon_fe\"",
         ),
         (
             with("series_element = false", "series_element = \"no\""),

@@ -64,7 +64,7 @@ wire_struct! {
 wire_struct! {
     /// The committed muscle: the geometry and mesh it was built with (the
     /// parameters may have been set since), its state and the last step's.
-    pub(super) struct CommittedState {
+    pub(crate) struct CommittedState {
         l0: f64,
         area: f64,
         n_axial: i32,
@@ -91,7 +91,7 @@ wire_struct! {
 wire_struct! {
     /// The solver's reused tangent (its anchor, from which a restored
     /// instance forms it again bit for bit) and the predictor's trend.
-    pub(super) struct SolverState {
+    pub(crate) struct SolverState {
         tangent: Option<AnchorState>,
         increments: Vec<IncrementState>,
         contraction: Option<ContractionState>,
@@ -99,7 +99,7 @@ wire_struct! {
 }
 
 wire_struct! {
-    pub(super) struct AnchorState {
+    pub(crate) struct AnchorState {
         x: Vec<f64>,
         activation: f64,
         start: Vec<f64>,
@@ -110,7 +110,7 @@ wire_struct! {
 }
 
 wire_struct! {
-    pub(super) struct IncrementState {
+    pub(crate) struct IncrementState {
         dx: Vec<f64>,
         dl: f64,
         da: f64,
@@ -119,7 +119,7 @@ wire_struct! {
 }
 
 wire_struct! {
-    pub(super) struct ContractionState {
+    pub(crate) struct ContractionState {
         theta: f64,
         age: u64,
     }
@@ -127,7 +127,7 @@ wire_struct! {
 
 wire_struct! {
     /// A substepped last step: the muscle before it and its inputs.
-    pub(super) struct SubsteppedState {
+    pub(crate) struct SubsteppedState {
         x: Vec<f64>,
         history: Vec<f64>,
         length: f64,
@@ -145,7 +145,7 @@ wire_struct! {
 
 wire_struct! {
     #[derive(Copy)]
-    pub(super) struct PieceState {
+    pub(crate) struct PieceState {
         end: f64,
         n: u64,
     }
@@ -194,46 +194,50 @@ fn solver_of(m: &Muscle) -> SolverState {
     }
 }
 
+/// The wire form of a committed muscle (with the geometry and mesh it was
+/// built with): `HillMuscleFE`'s, and the FE musculotendon unit's muscle.
+pub(crate) fn committed_state(c: &Committed) -> CommittedState {
+    let (mu, l, d) = (&c.muscle, &c.last, &c.muscle.disc);
+    CommittedState {
+        l0: d.l0,
+        area: d.area,
+        n_axial: d.mesh.resolution.n_axial as i32,
+        n_radial: d.mesh.resolution.n_radial as i32,
+        axial_grading: d.mesh.grading.axial,
+        radial_grading: d.mesh.grading.radial,
+        fibre_layout: layout_code(d.fibres),
+        x: mu.x.clone(),
+        history: pairs_of(&mu.history),
+        length: mu.length,
+        start: pairs_of(&l.start),
+        h: MaybeF64(l.h),
+        activation: l.activation,
+        da_du: l.da_du,
+        solver: solver_of(mu),
+        substepped: c.substepped.as_ref().map(|st| SubsteppedState {
+            x: st.before.x.clone(),
+            history: pairs_of(&st.before.history),
+            length: st.before.length,
+            solver: solver_of(&st.before),
+            dynamics: st.level.dynamics,
+            s: st.level.s,
+            a0: st.level.a0,
+            u: st.level.u,
+            u_dot: st.level.u_dot,
+            h: st.level.h,
+            end_length: st.end_length,
+            pieces: st
+                .pieces
+                .iter()
+                .map(|&(end, n)| PieceState { end, n: n as u64 })
+                .collect(),
+        }),
+    }
+}
+
 /// [`Model::serialize`] of the FE model.
 pub(super) fn encode<S: Scene>(m: &HillFEModel<S>, out: &mut Vec<u8>) {
-    let committed = m.state.as_ref().map(|c| {
-        let (mu, l, d) = (&c.muscle, &c.last, &c.muscle.disc);
-        CommittedState {
-            l0: d.l0,
-            area: d.area,
-            n_axial: d.mesh.resolution.n_axial as i32,
-            n_radial: d.mesh.resolution.n_radial as i32,
-            axial_grading: d.mesh.grading.axial,
-            radial_grading: d.mesh.grading.radial,
-            fibre_layout: layout_code(d.fibres),
-            x: mu.x.clone(),
-            history: pairs_of(&mu.history),
-            length: mu.length,
-            start: pairs_of(&l.start),
-            h: MaybeF64(l.h),
-            activation: l.activation,
-            da_du: l.da_du,
-            solver: solver_of(mu),
-            substepped: c.substepped.as_ref().map(|st| SubsteppedState {
-                x: st.before.x.clone(),
-                history: pairs_of(&st.before.history),
-                length: st.before.length,
-                solver: solver_of(&st.before),
-                dynamics: st.level.dynamics,
-                s: st.level.s,
-                a0: st.level.a0,
-                u: st.level.u,
-                u_dot: st.level.u_dot,
-                h: st.level.h,
-                end_length: st.end_length,
-                pieces: st
-                    .pieces
-                    .iter()
-                    .map(|&(end, n)| PieceState { end, n: n as u64 })
-                    .collect(),
-            }),
-        }
-    });
+    let committed = m.state.as_ref().map(committed_state);
     let state = HillFEState {
         params: PARAMETERS.iter().map(|i| m.params.get(i.id)).collect(),
         l0: m.l0,
@@ -358,7 +362,7 @@ fn claimed_mesh(c: &CommittedState) -> Result<(Resolution, Grading, FibreLayout)
 
 /// The committed muscle of `c`, its mesh built only after its size was
 /// checked against the state's arrays ([`claimed_mesh`]).
-fn restore_committed(c: CommittedState) -> Result<Committed, String> {
+pub(crate) fn restore_committed(c: CommittedState) -> Result<Committed, String> {
     let (resolution, grading, layout) = claimed_mesh(&c)?;
     let (n_nodes, n_elements) = (resolution.nodes(), resolution.tets());
     let n_dofs = 3 * n_nodes;

@@ -1,0 +1,473 @@
+//! The FE musculotendon unit: the FE muscle in series with a tendon, at a
+//! pennation angle, driven by the length of its whole path (MODEL_NOTES
+//! "Musculotendon unit"; docs/design/musculotendon.md).
+//!
+//! Entry points: [`MusculotendonFE::initialize`] (static equilibrium at the
+//! initial path length and activation level), [`MusculotendonFE::step`],
+//! [`MusculotendonFE::output`] and [`MusculotendonFE::partial`].
+//!
+//! Each communication step solves the equilibrium
+//! F_T(ℓ − L_M cos α) = F_M(L_M) cos α for the fibre length L_M with
+//! [`solve_equilibrium`], F_M(L_M) being the axial force after the FE step
+//! map from the committed state to end length L_M ([`Committed::step`], its
+//! substeps and error control included). The scalar solve costs a few FE
+//! solves: its first trial is L_M predicted from the last step
+//! (dL_M/dℓ·Δℓ and the rates), its slope dF_M/dL_M the last step's secant
+//! (Newton's slope only: the partials use the consistent tangent); each
+//! later trial of a step taken in one piece starts its Newton iteration
+//! from the previous trial's solution moved by ∂x/∂L·ΔL ([`warm_step`]).
+//! The partial derivatives are the equilibrium's implicit ones with the FE
+//! step map's consistent dF_M/dL_M and dF_M/du
+//! ([`Committed::force_derivatives`], formed on first request).
+//!
+//! Invariants: a step that cannot be completed (no equilibrium in the
+//! evaluable range, past the largest pennation angle, or the FE step's own
+//! failures) is an error and changes nothing (every method takes `&self`);
+//! a rigid tendon without pennation takes the plain FE step at length
+//! ℓ − L_TS, bit for bit.
+
+use std::sync::Arc;
+
+use crate::fe::discretization::Discretization;
+use crate::fe::muscle::Muscle;
+use crate::fe::newton::RESIDUAL_TOLERANCE;
+use crate::fe::step_map::{
+    check_stretch, Committed, LastStep, Outputs, Quantity, StepFailure, StepLevel, Stepped,
+};
+use crate::fe::tangent::{Increment, Trend};
+use crate::law::musculotendon::{solve_equilibrium, EquilibriumError, MuscleForce, Unit};
+use crate::law::pennation::MIN_COS;
+use crate::law::uniaxial::evaluable_stretch_range;
+use crate::law::Params;
+
+/// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to F0:
+/// ten times the FE solve's own force tolerance
+/// ([`crate::fe::newton::RESIDUAL_TOLERANCE`]), below which F_M(L_M) is
+/// not determined.
+pub const EQUILIBRIUM_RTOL: f64 = 1e-9;
+
+/// The force change, in FE force tolerances, over which two trials give
+/// Newton's slope dF_M/dL_M (their secant, then uncertain by ~3 %).
+const SECANT_RESOLUTION: f64 = 30.0;
+
+/// The unit's outputs (MODEL_NOTES "Musculotendon unit": outputs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UnitOutput {
+    /// The tendon force F_T (N), what the path carries.
+    Force,
+    /// The muscle's nominal stress F_M / area (Pa).
+    Stress,
+    /// L_M (m).
+    FibreLength,
+    /// ε.
+    TendonStrain,
+    /// α (rad).
+    PennationAngle,
+}
+
+/// Number of [`UnitOutput`] values.
+pub const N_UNIT: usize = 5;
+
+/// What the next step's first trial extrapolates from: dL_M/dℓ of the last
+/// step, its rates of L_M and of the path (m/s; 0 after initialization)
+/// and its slope dF_M/dL_M (N/m). They change the cost, not the result
+/// beyond the equilibrium's tolerance.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Guess {
+    pub slope: f64,
+    pub fibre_rate: f64,
+    pub path_rate: f64,
+    pub stiffness: f64,
+}
+
+/// The unit after a step or initialization.
+#[derive(Clone, Debug)]
+pub struct MusculotendonFE {
+    /// The FE muscle, its length L_M.
+    pub muscle: Committed,
+    /// Its outputs ([`crate::fe::step_map::outputs`]).
+    pub muscle_outputs: Outputs,
+    /// The path length at the end of the last step.
+    pub path: f64,
+    pub guess: Guess,
+    /// In [`UnitOutput`] order.
+    pub outputs: [f64; N_UNIT],
+    /// FE Newton iterations (linear solves) of the last step, every trial.
+    pub iterations: usize,
+    /// FE step maps the last step evaluated (trials).
+    pub trials: u32,
+}
+
+/// The muscle's geometry and law: what every call needs.
+#[derive(Clone, Copy, Debug)]
+pub struct Setup<'a> {
+    pub params: &'a Params,
+    pub l0: f64,
+    pub area: f64,
+    pub unit: &'a Unit,
+}
+
+impl Setup<'_> {
+    /// The fibre lengths the law can evaluate.
+    fn range(&self) -> (f64, f64) {
+        let (lo, hi) = evaluable_stretch_range(self.params);
+        (lo * self.l0, hi * self.l0)
+    }
+
+    /// The equilibrium's tolerance (N).
+    fn tol(&self) -> f64 {
+        EQUILIBRIUM_RTOL * self.unit.tendon.f0
+    }
+}
+
+/// The message of an equilibrium that failed at path length `path`.
+fn unsolvable(e: EquilibriumError<StepFailure>, path: f64) -> StepFailure {
+    let reason = match e {
+        EquilibriumError::Muscle { error, .. } => return error,
+        EquilibriumError::LargestAngle {
+            min_fibre_length, ..
+        } => format!(
+            "the equilibrium needs fibres shorter than {min_fibre_length} m, past the largest \
+             pennation angle (cos alpha >= {MIN_COS}); a longer path or a smaller pennation_angle \
+             is needed"
+        ),
+        EquilibriumError::NoRoot { bound, residual } => format!(
+            "no equilibrium of tendon and muscle for fibre lengths the law can evaluate \
+             (F_M cos alpha - F_T = {residual:e} N at fibre length {bound} m)"
+        ),
+        EquilibriumError::NoConvergence { lo, hi } => {
+            format!("the equilibrium did not converge (fibre length in [{lo}, {hi}] m)")
+        }
+    };
+    StepFailure::NotConverged {
+        length: path,
+        reason: format!("path length {path} m: {reason}"),
+    }
+}
+
+/// The step of `from` to end length `length` started from `warm`, a
+/// solution of the same step (same start, level and rate) at another end
+/// length, instead of from the committed state's predictor: the FE step in
+/// one piece of one substep ([`Muscle::advance_in`]) with the muscle's
+/// predictor record replaced by one increment that makes its prediction
+/// warm's positions plus ∂x/∂L·(length − warm's length)
+/// ([`crate::fe::newton`], "Predictor"), then the committed record pushed
+/// with this step's real increment, as a cold step leaves it. `None` where
+/// that does not apply or does not converge (the caller steps cold).
+fn warm_step(
+    from: &Committed,
+    warm: &Committed,
+    p: &Params,
+    area: f64,
+    level: &StepLevel,
+    length: f64,
+) -> Option<Stepped> {
+    let (m0, h) = (&from.muscle, level.h);
+    if warm.substepped.is_some() || warm.last.h != Some(h) {
+        return None;
+    }
+    let w = &warm.muscle;
+    let da = level.end - level.at(0.0);
+    let seed = Trend {
+        increments: vec![Increment {
+            dx: vec![0.0; w.x.len()],
+            dl: 0.0,
+            da,
+            h,
+        }],
+        contraction: w.trend.contraction,
+    };
+    let start = Muscle {
+        disc: m0.disc.clone(),
+        x: w.x.clone(),
+        history: m0.history.clone(),
+        length: w.length,
+        tangent: w.tangent.clone(),
+        trend: seed,
+        tolerance: m0.tolerance,
+    };
+    let adv = start
+        .advance_in(p, length, h, &|tau| level.at(tau), 1)
+        .ok()?;
+    let s = &adv.solution;
+    let increment = Increment {
+        dx: s.x.iter().zip(&m0.x).map(|(a, b)| a - b).collect(),
+        dl: length - m0.length,
+        da,
+        h,
+    };
+    let muscle = Muscle {
+        trend: m0.trend.push(increment, adv.muscle.trend.contraction),
+        ..adv.muscle
+    };
+    let outputs =
+        crate::fe::step_map::outputs(&muscle.disc, area, muscle.length, &s.evaluation, level.end);
+    if outputs.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let last = LastStep {
+        start: adv.start,
+        h: Some(h),
+        activation: level.end,
+        da_du: level.d_end_du,
+    };
+    Some(Stepped {
+        state: Committed::new(muscle, last, None),
+        outputs,
+        iterations: adv.iterations,
+    })
+}
+
+/// The trial closure's record: the last FE step evaluated (the accepted one
+/// when the solve returns), the slope estimate and the work.
+struct Trials {
+    kept: Option<Stepped>,
+    last: Option<(f64, f64)>,
+    slope: f64,
+    iterations: usize,
+    trials: u32,
+}
+
+impl Trials {
+    fn new(slope: f64) -> Self {
+        Trials {
+            kept: None,
+            last: None,
+            slope,
+            iterations: 0,
+            trials: 0,
+        }
+    }
+
+    /// Record trial `s` at fibre length `l`: its force with Newton's slope,
+    /// the secant through the last trial where the force difference is
+    /// [`SECANT_RESOLUTION`] times the FE solve's force tolerance or more
+    /// (`f0` the force scale).
+    fn record(&mut self, l: f64, s: Stepped, f0: f64) -> MuscleForce {
+        let f = s.outputs[Quantity::Force as usize];
+        if let Some((l1, f1)) = self.last {
+            let secant = (f - f1) / (l - l1);
+            let noise = RESIDUAL_TOLERANCE * f.abs().max(f0);
+            if (f - f1).abs() >= SECANT_RESOLUTION * noise && secant.is_finite() {
+                self.slope = secant;
+            }
+        }
+        self.last = Some((l, f));
+        self.iterations += s.iterations;
+        self.trials += 1;
+        self.kept = Some(s);
+        MuscleForce {
+            force: f,
+            stiffness: self.slope,
+        }
+    }
+}
+
+impl MusculotendonFE {
+    /// Static equilibrium at path length `path` and activation level
+    /// `activation` (MODEL_NOTES "Musculotendon unit": initialization): the
+    /// FE muscle's isometric equilibrium ([`Committed::initialize`]) at the
+    /// fibre length where it balances the tendon, Newton's slope its
+    /// consistent dF/dL. `da_du` is the level's derivative with respect to
+    /// the command.
+    pub fn initialize(
+        disc: Arc<Discretization>,
+        s: &Setup,
+        path: f64,
+        activation: f64,
+        da_du: f64,
+    ) -> Result<MusculotendonFE, String> {
+        let unit = s.unit;
+        let guess = unit
+            .pennation
+            .fibre_length_of(path - unit.tendon.slack_length)
+            .unwrap_or(s.l0)
+            .clamp(s.range().0, s.range().1);
+        let mut t = Trials::new(0.0);
+        solve_equilibrium(unit, path, s.range(), guess, s.tol(), |l| {
+            let st = Committed::initialize(disc.clone(), s.params, s.area, l, activation, da_du)
+                .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+            let (k, _) = st
+                .state
+                .force_derivatives(s.params, s.l0, s.area)
+                .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+            let force = t.record(l, st, s.unit.tendon.f0).force;
+            t.slope = k;
+            Ok(MuscleForce {
+                force,
+                stiffness: k,
+            })
+        })
+        .map_err(|e| unsolvable(e, path).to_string())?;
+        let st = t.kept.take().expect("the equilibrium evaluates the muscle");
+        let mut done = Self::finish(s, path, st, t, Guess::default());
+        let (dl, _) = done.fibre_derivatives(s, true)?;
+        done.guess.slope = dl;
+        Ok(done)
+    }
+
+    /// One step of length `level.h` to path length `path`, the activation
+    /// level following `level`, with `substep_tolerance` as
+    /// [`Committed::step`]'s (module docs). The rigid tendon takes one FE
+    /// step at L_M cos α = ℓ − L_TS.
+    pub fn step(
+        &self,
+        s: &Setup,
+        level: StepLevel,
+        path: f64,
+        substep_tolerance: Option<f64>,
+    ) -> Result<MusculotendonFE, StepFailure> {
+        let h = level.h;
+        let g = &self.guess;
+        let l_now = self.outputs[UnitOutput::FibreLength as usize];
+        let predicted = l_now + g.fibre_rate * h + g.slope * ((path - self.path) - g.path_rate * h);
+        let mut t = Trials::new(g.stiffness);
+        let eq = solve_equilibrium(s.unit, path, s.range(), predicted, s.tol(), |l| {
+            check_stretch(s.params, s.l0, l)
+                .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+            // Warm starts skip the error control: only without it.
+            let warm = t
+                .kept
+                .as_ref()
+                .filter(|_| substep_tolerance.is_none())
+                .and_then(|w| warm_step(&self.muscle, &w.state, s.params, s.area, &level, l));
+            let st = match warm {
+                Some(st) => st,
+                None => self
+                    .muscle
+                    .step(s.params, s.area, level, l, substep_tolerance)?,
+            };
+            Ok(t.record(l, st, s.unit.tendon.f0))
+        })
+        .map_err(|e| unsolvable(e, path))?;
+        debug_assert_eq!(
+            eq.fibre_length,
+            t.kept.as_ref().map_or(0.0, |k| k.state.muscle.length)
+        );
+        let st = t.kept.take().expect("the equilibrium evaluates the muscle");
+        let l_end = st.state.muscle.length;
+        let guess = Guess {
+            slope: g.slope,
+            fibre_rate: (l_end - l_now) / h,
+            path_rate: (path - self.path) / h,
+            stiffness: t.slope,
+        };
+        let mut done = Self::finish(s, path, st, t, guess);
+        if done.outputs.iter().any(|x| !x.is_finite()) {
+            return Err(StepFailure::NonFiniteOutput { length: l_end });
+        }
+        // dL_M/dℓ of the equilibrium with Newton's slope: the next guess.
+        let pen = s.unit.pennation.at(l_end);
+        if s.unit.compliant {
+            let f_m = done.muscle_outputs[Quantity::Force as usize];
+            let kt = s.unit.tendon.force(path - pen.projection).1;
+            let r_l = done.guess.stiffness * pen.cos + f_m * pen.dcos + kt * pen.dprojection;
+            let slope = kt / r_l;
+            done.guess.slope = if slope.is_finite() { slope } else { 0.0 };
+        } else {
+            done.guess.slope = pen.cos;
+        }
+        Ok(done)
+    }
+
+    /// The unit at the accepted trial `st` on path `path`.
+    fn finish(s: &Setup, path: f64, st: Stepped, t: Trials, guess: Guess) -> MusculotendonFE {
+        let unit = s.unit;
+        let l_m = st.state.muscle.length;
+        let pen = unit.pennation.at(l_m);
+        let f_m = st.outputs[Quantity::Force as usize];
+        let (strain, force) = if unit.compliant {
+            let lt = path - pen.projection;
+            (unit.tendon.strain(lt), unit.tendon.force(lt).0)
+        } else {
+            (0.0, f_m * pen.cos)
+        };
+        let outputs = [
+            force,
+            st.outputs[Quantity::Stress as usize],
+            l_m,
+            strain,
+            pen.angle,
+        ];
+        MusculotendonFE {
+            muscle: st.state,
+            muscle_outputs: st.outputs,
+            path,
+            guess: Guess {
+                stiffness: t.slope,
+                ..guess
+            },
+            outputs,
+            iterations: t.iterations,
+            trials: t.trials,
+        }
+    }
+
+    /// The value of `out`.
+    pub fn output(&self, out: UnitOutput) -> f64 {
+        self.outputs[out as usize]
+    }
+
+    /// (dL_M/d(input), dF_T/d(input)) of the last step's map, the input the
+    /// path length when `by_length`, else the activation command: the
+    /// equilibrium's implicit derivatives (MODEL_NOTES "Musculotendon
+    /// unit"; [`solve_equilibrium`]) with the FE step map's consistent
+    /// k = dF_M/dL_M and dF_M/du ([`Committed::force_derivatives`]).
+    /// Compliant, with R_L = k cos α + F_M d cos α/dL_M + k_T/cos α:
+    /// dL_M/dℓ = k_T/R_L, dL_M/du = −cos α (dF_M/du)/R_L, and
+    /// dF_T = k_T (dℓ − dL_M/cos α). Rigid: dL_M/dℓ = cos α, dL_M/du = 0,
+    /// dF_T = (k cos α + F_M d cos α/dL_M) dL_M + cos α dF_M/du du.
+    fn fibre_derivatives(&self, s: &Setup, by_length: bool) -> Result<(f64, f64), String> {
+        let (k, du) = self.muscle.force_derivatives(s.params, s.l0, s.area)?;
+        let l_m = self.outputs[UnitOutput::FibreLength as usize];
+        let pen = s.unit.pennation.at(l_m);
+        let f_m = self.muscle_outputs[Quantity::Force as usize];
+        let k_m = k * pen.cos + f_m * pen.dcos;
+        let dpath = if by_length { 1.0 } else { 0.0 };
+        let dfu = if by_length { 0.0 } else { du };
+        let (dl, df) = if s.unit.compliant {
+            let kt = s.unit.tendon.force(self.path - pen.projection).1;
+            let r_l = k_m + kt * pen.dprojection;
+            if r_l.is_nan() || r_l <= 0.0 {
+                return Err(format!(
+                    "the equilibrium at fibre length {l_m} m is not regular (dR/dL_M = {r_l:e})"
+                ));
+            }
+            let dl = (kt * dpath - pen.cos * dfu) / r_l;
+            (dl, kt * (dpath - pen.dprojection * dl))
+        } else {
+            let dl = pen.cos * dpath;
+            (dl, k_m * dl + pen.cos * dfu)
+        };
+        Ok((dl, df))
+    }
+
+    /// ∂`out`/∂(input) of the last step's map (history fixed), the input the
+    /// path length when `by_length`, else the activation command: the
+    /// force's and the fibre length's from [`Self::fibre_derivatives`], the
+    /// others chained through the fibre length; the stiffness output is
+    /// `partial(Force, true)`.
+    pub fn partial(&self, s: &Setup, out: UnitOutput, by_length: bool) -> Result<f64, String> {
+        let (dl, df) = self.fibre_derivatives(s, by_length)?;
+        let l_m = self.outputs[UnitOutput::FibreLength as usize];
+        let pen = s.unit.pennation.at(l_m);
+        Ok(match out {
+            UnitOutput::Force => df,
+            UnitOutput::FibreLength => dl,
+            UnitOutput::Stress => {
+                let (k, du) = self.muscle.force_derivatives(s.params, s.l0, s.area)?;
+                (k * dl + if by_length { 0.0 } else { du }) / s.area
+            }
+            UnitOutput::TendonStrain if s.unit.compliant => {
+                let dpath = if by_length { 1.0 } else { 0.0 };
+                (dpath - pen.dprojection * dl) / s.unit.tendon.slack_length
+            }
+            UnitOutput::TendonStrain => 0.0,
+            // sin α = h/L_M: cos α dα = −(sin α/L_M) dL_M.
+            UnitOutput::PennationAngle => -(pen.angle.sin() / l_m) * dl / pen.cos,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;

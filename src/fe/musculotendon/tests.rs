@@ -1,0 +1,381 @@
+//! Tests of the FE musculotendon unit on a small mesh (6 × 1): the
+//! equilibrium after every step, the rigid tendon against the plain FE
+//! muscle, the near-rigid limit, the derivatives against finite
+//! differences of the step map, determinism, the hard cases, and the FE
+//! solves per step against the plain FE step.
+
+use super::*;
+use crate::fe::mesh::{FibreLayout, Grading, Resolution};
+use crate::fe::step_map::discretization;
+use crate::law::musculotendon::UnitParams;
+use crate::specimen::{LENGTH as L0, MEAN_AREA as AREA};
+
+const H: f64 = 1e-3;
+
+fn disc() -> Arc<Discretization> {
+    discretization(
+        None,
+        L0,
+        AREA,
+        Resolution {
+            n_axial: 6,
+            n_radial: 1,
+        },
+        Grading::UNIFORM,
+        FibreLayout::Axial,
+    )
+    .unwrap()
+}
+
+fn unit(eps0: f64, alpha0: f64, compliant: bool) -> Unit {
+    let p = Params::default();
+    let up = UnitParams {
+        tendon_slack_length: 0.1,
+        tendon_strain_at_f0: eps0,
+        pennation_angle: alpha0,
+        compliant_tendon: compliant,
+    };
+    Unit::new(&up, L0, p.sigma0 * AREA)
+}
+
+fn setup<'a>(p: &'a Params, u: &'a Unit) -> Setup<'a> {
+    Setup {
+        params: p,
+        l0: L0,
+        area: AREA,
+        unit: u,
+    }
+}
+
+/// The level over a step from `a0` under command `u` (no dynamics: the
+/// command itself).
+fn level(p: &Params, a0: f64, u: f64) -> StepLevel {
+    StepLevel::new(false, p.s, a0, u, 0.0, H, 1.0)
+}
+
+/// The residual F_M cos α − F_T of the unit, recomputed from its outputs.
+fn residual(s: &Setup, mt: &MusculotendonFE) -> f64 {
+    let l_m = mt.output(UnitOutput::FibreLength);
+    let pen = s.unit.pennation.at(l_m);
+    let f_m = mt.muscle_outputs[Quantity::Force as usize];
+    let ft = s.unit.tendon.force(mt.path - pen.projection).0;
+    assert_eq!(ft, mt.output(UnitOutput::Force));
+    f_m * pen.cos - ft
+}
+
+/// `n` steps on the path `path(k)` under command `u`.
+fn run(
+    s: &Setup,
+    mut mt: MusculotendonFE,
+    n: usize,
+    u: f64,
+    path: impl Fn(usize) -> f64,
+    mut each: impl FnMut(&MusculotendonFE),
+) -> MusculotendonFE {
+    for k in 1..=n {
+        let a0 = mt.muscle.last.activation;
+        mt = mt.step(s, level(s.params, a0, u), path(k), None).unwrap();
+        each(&mt);
+    }
+    mt
+}
+
+#[test]
+fn every_step_ends_in_equilibrium_within_tolerance() {
+    let p = Params::default();
+    for (alpha0, a) in [(0.0, 0.0), (0.3, 0.5), (0.3, 1.0)] {
+        let u = unit(0.04, alpha0, true);
+        let s = setup(&p, &u);
+        let path0 = u.tendon.slack_length + 1.05 * L0 * alpha0.cos();
+        let mt = MusculotendonFE::initialize(disc(), &s, path0, a, 1.0).unwrap();
+        assert!(residual(&s, &mt).abs() <= s.tol(), "{}", residual(&s, &mt));
+        let mut worst: f64 = 0.0;
+        run(
+            &s,
+            mt,
+            20,
+            a,
+            |k| path0 + 5e-3 * H * k as f64,
+            |m| {
+                worst = worst.max(residual(&s, m).abs());
+                assert!(m.trials <= 6, "{} trials", m.trials);
+            },
+        );
+        assert!(worst <= s.tol(), "α0 {alpha0} a {a}: {worst:e}");
+    }
+}
+
+/// A rigid tendon without pennation is the plain FE muscle at ℓ − L_TS,
+/// bit for bit: the same initialization and steps.
+#[test]
+fn a_rigid_tendon_without_pennation_is_the_plain_muscle() {
+    let p = Params::default();
+    let u = unit(0.04, 0.0, false);
+    let s = setup(&p, &u);
+    let d = disc();
+    let path = |k: usize| u.tendon.slack_length + L0 * (1.02 + 0.004 * k as f64);
+    let mut mt = MusculotendonFE::initialize(d.clone(), &s, path(0), 0.3, 1.0).unwrap();
+    let mut plain = Committed::initialize(d, &p, AREA, path(0) - 0.1, 0.3, 1.0).unwrap();
+    for k in 1..=5 {
+        assert_eq!(mt.muscle.muscle.x, plain.state.muscle.x, "step {k}");
+        assert_eq!(mt.muscle_outputs, plain.outputs);
+        assert_eq!(
+            mt.output(UnitOutput::Force),
+            plain.outputs[Quantity::Force as usize]
+        );
+        let lv = level(&p, 0.3, 0.3 + 0.1 * k as f64);
+        mt = mt.step(&s, lv, path(k), None).unwrap();
+        plain = plain.state.step(&p, AREA, lv, path(k) - 0.1, None).unwrap();
+        assert_eq!(mt.trials, 1);
+    }
+    let (a, b) = (
+        mt.partial(&s, UnitOutput::Force, true).unwrap(),
+        plain.state.force_derivatives(&p, L0, AREA).unwrap().0,
+    );
+    assert_eq!(a, b);
+}
+
+/// As ε0 → 0 the compliant unit tends to the rigid one: ε0 = 1e-4 within
+/// the tendon's stretch ~ ε0 L_TS of it.
+#[test]
+fn a_near_rigid_tendon_is_close_to_the_rigid_one() {
+    let p = Params::default();
+    let alpha0 = 0.3;
+    let (rigid, stiff) = (unit(0.04, alpha0, false), unit(1e-4, alpha0, true));
+    let path = |k: usize| 0.1 + L0 * alpha0.cos() * (1.03 + 0.002 * k as f64);
+    let go = |u: &Unit| {
+        let s = setup(&p, u);
+        let mt = MusculotendonFE::initialize(disc(), &s, path(0), 0.5, 1.0).unwrap();
+        run(&s, mt, 5, 0.5, path, |_| {})
+    };
+    let (r, c) = (go(&rigid), go(&stiff));
+    let (fr, fc) = (r.output(UnitOutput::Force), c.output(UnitOutput::Force));
+    assert!(((fc - fr) / fr).abs() < 2e-3, "{fc} vs {fr}");
+    let dl = (c.output(UnitOutput::FibreLength) - r.output(UnitOutput::FibreLength)).abs();
+    assert!(dl < 2e-4 * 0.1, "{dl}");
+}
+
+/// The partial derivatives against central differences of the unit's step
+/// map (the same committed state, the input moved).
+#[test]
+fn derivatives_match_finite_differences_of_the_step_map() {
+    let p = Params::default();
+    for (eps0, alpha0, compliant) in [(0.04, 0.0, true), (0.04, 0.4, true), (0.04, 0.4, false)] {
+        let u = unit(eps0, alpha0, compliant);
+        let s = setup(&p, &u);
+        let path0 = 0.1 + L0 * alpha0.cos() * 1.04;
+        let mt = MusculotendonFE::initialize(disc(), &s, path0, 0.4, 1.0).unwrap();
+        let mt = run(&s, mt, 3, 0.6, |k| path0 + 1e-5 * k as f64, |_| {});
+        let (path, cmd) = (path0 + 4e-5, 0.7);
+        let a0 = mt.muscle.last.activation;
+        let at = |l: f64, c: f64| mt.step(&s, level(&p, a0, c), l, None).unwrap();
+        let base = at(path, cmd);
+        let (dl, du) = (1e-5 * L0, 1e-4);
+        let (lp, lm) = (at(path + dl, cmd), at(path - dl, cmd));
+        let (up, um) = (at(path, cmd + du), at(path, cmd - du));
+        for o in [
+            UnitOutput::Force,
+            UnitOutput::Stress,
+            UnitOutput::FibreLength,
+            UnitOutput::TendonStrain,
+            UnitOutput::PennationAngle,
+        ] {
+            let v = |m: &MusculotendonFE| m.output(o);
+            for (by_length, fd, scale) in [
+                (true, (v(&lp) - v(&lm)) / (2.0 * dl), 1.0 / L0),
+                (false, (v(&up) - v(&um)) / (2.0 * du), 1.0),
+            ] {
+                let d = base.partial(&s, o, by_length).unwrap();
+                // Each side solved to the equilibrium's and the FE
+                // solve's tolerances: ~1e-9 of the output's scale over
+                // the difference's step.
+                let size = v(&base).abs().max(match o {
+                    UnitOutput::Force => u.tendon.f0,
+                    UnitOutput::Stress => p.sigma0,
+                    UnitOutput::FibreLength => L0,
+                    _ => 1.0,
+                });
+                let tol = 2e-3 * d.abs() + 1e-7 * size * scale.max(1.0) / 1e-5;
+                assert!(
+                    (d - fd).abs() <= tol,
+                    "{o:?} by_length {by_length} ε0 {eps0} α0 {alpha0} rigid {}: {d} vs fd {fd}",
+                    !compliant
+                );
+            }
+        }
+    }
+}
+
+/// The step is a function of the committed state: from a copy, the same
+/// state bit for bit (what save/restore relies on).
+#[test]
+fn a_step_from_a_copy_is_the_same_step() {
+    let p = Params::default();
+    let u = unit(0.04, 0.3, true);
+    let s = setup(&p, &u);
+    let path0 = 0.1 + L0 * 0.3f64.cos() * 1.03;
+    let mt = MusculotendonFE::initialize(disc(), &s, path0, 0.5, 1.0).unwrap();
+    let mt = run(&s, mt, 3, 0.5, |k| path0 + 1e-5 * k as f64, |_| {});
+    let copy = mt.clone();
+    let lv = level(&p, 0.5, 0.8);
+    let (a, b) = (
+        mt.step(&s, lv, path0 + 5e-5, None).unwrap(),
+        copy.step(&s, lv, path0 + 5e-5, None).unwrap(),
+    );
+    assert_eq!(a.muscle.muscle.x, b.muscle.muscle.x);
+    assert_eq!(a.muscle.muscle.trend, b.muscle.muscle.trend);
+    assert_eq!(a.outputs, b.outputs);
+    assert_eq!(a.guess, b.guess);
+}
+
+/// A slack tendon: F_T = 0 and the passive muscle at F_M = 0 (within the
+/// tolerance), from initialization and by a step. (An active muscle
+/// shortens until its tendon is taut.)
+#[test]
+fn a_slack_tendon_leaves_the_muscle_at_zero_force() {
+    let p = Params::default();
+    {
+        let a = 0.0;
+        let u = unit(0.04, 0.3, true);
+        let s = setup(&p, &u);
+        let short = 0.1 + 0.9 * L0;
+        let mt = MusculotendonFE::initialize(disc(), &s, short, a, 1.0).unwrap();
+        assert_eq!(mt.output(UnitOutput::Force), 0.0);
+        assert!(mt.output(UnitOutput::TendonStrain) < 0.0);
+        let f_m = mt.muscle_outputs[Quantity::Force as usize];
+        assert!(f_m.abs() <= 2.0 * s.tol(), "a {a}: F_M {f_m}");
+        assert_eq!(mt.partial(&s, UnitOutput::Force, true).unwrap(), 0.0);
+        let mt = run(
+            &s,
+            mt,
+            3,
+            a,
+            |k| short - 1e-5 * k as f64,
+            |m| {
+                assert_eq!(m.output(UnitOutput::Force), 0.0);
+            },
+        );
+        assert!(mt.muscle_outputs[Quantity::Force as usize].abs() <= 2.0 * s.tol());
+    }
+}
+
+/// Activation 0 and 1, a jump of the command and of the path: defined
+/// (finite, in equilibrium) or refused, never NaN; a refused step changes
+/// nothing (it takes `&self`).
+#[test]
+fn activation_extremes_and_path_jumps_are_defined() {
+    let p = Params::default();
+    let u = unit(0.04, 0.3, true);
+    let s = setup(&p, &u);
+    let path0 = 0.1 + L0 * 0.3f64.cos() * 1.05;
+    let mt = MusculotendonFE::initialize(disc(), &s, path0, 0.0, 1.0).unwrap();
+    // The command jumps 0 → 1, then the path by 5 % L0 in one step.
+    let on = mt.step(&s, level(&p, 0.0, 1.0), path0, None).unwrap();
+    assert!(residual(&s, &on).abs() <= s.tol());
+    let jumped = on
+        .step(&s, level(&p, 1.0, 1.0), path0 + 0.05 * L0, None)
+        .unwrap();
+    assert!(residual(&s, &jumped).abs() <= s.tol());
+    assert!(jumped.outputs.iter().all(|x| x.is_finite()));
+    let back = jumped.step(&s, level(&p, 1.0, 0.0), path0, None).unwrap();
+    assert!(residual(&s, &back).abs() <= s.tol());
+    // A path far longer: the tendon takes it (defined).
+    let far = back
+        .step(&s, level(&p, 0.0, 0.0), path0 + 3.0 * L0, None)
+        .unwrap();
+    assert!(residual(&s, &far).abs() <= s.tol());
+    // A rigid tendon on that path would stretch the fibres past what the
+    // law can evaluate: refused, and the unit stepped from is unchanged.
+    let u = unit(0.04, 0.0, false);
+    let s = setup(&p, &u);
+    let mt = MusculotendonFE::initialize(disc(), &s, 0.1 + L0, 1.0, 1.0).unwrap();
+    let before = mt.muscle.muscle.x.clone();
+    let e = match mt.step(&s, level(&p, 1.0, 1.0), 0.1 + 6.0 * L0, None) {
+        Ok(m) => panic!("stepped to {:?}", m.outputs),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("outside the range"), "{e}");
+    assert_eq!(mt.muscle.muscle.x, before);
+    let on = mt.step(&s, level(&p, 1.0, 1.0), 0.1 + L0, None).unwrap();
+    assert!(on.outputs.iter().all(|x| x.is_finite()));
+}
+
+/// The largest pennation angle: a rigid tendon on a path shorter than the
+/// fibres' projection there is refused at initialization and in a step.
+#[test]
+fn the_largest_angle_is_refused() {
+    let p = Params::default();
+    let u = unit(0.04, 1.0, false);
+    let s = setup(&p, &u);
+    let short = u.tendon.slack_length + 0.5 * u.pennation.min_projection();
+    let e = MusculotendonFE::initialize(disc(), &s, short, 0.0, 1.0).unwrap_err();
+    assert!(e.contains("largest"), "{e}");
+    let ok = u.tendon.slack_length + L0 * 1f64.cos();
+    let mt = MusculotendonFE::initialize(disc(), &s, ok, 0.0, 1.0).unwrap();
+    let e = mt.step(&s, level(&p, 0.0, 0.0), short, None).unwrap_err();
+    assert!(e.to_string().contains("largest"), "{e}");
+}
+
+/// The FE solves (Newton iterations) per step of the unit against the plain
+/// FE step on the same fibre-length path, on a passive pull and an
+/// activated one.
+#[test]
+fn the_unit_costs_a_few_fe_solves_more_than_the_plain_step() {
+    let p = Params::default();
+    for a in [0.0, 1.0] {
+        let u = unit(0.04, 0.0, true);
+        let s = setup(&p, &u);
+        let path0 = 0.1 + L0;
+        let d = disc();
+        let mt = MusculotendonFE::initialize(d.clone(), &s, path0, a, 1.0).unwrap();
+        let (mut solves, mut trials, mut fibre) = (0, 0, vec![]);
+        let n = 200;
+        run(
+            &s,
+            mt.clone(),
+            n,
+            a,
+            |k| path0 + 5e-3 * H * k as f64,
+            |m| {
+                solves += m.iterations;
+                trials += m.trials;
+                fibre.push(m.output(UnitOutput::FibreLength));
+            },
+        );
+        let mut plain = mt.muscle.clone();
+        let mut plain_solves = 0;
+        for &l in &fibre {
+            let st = plain
+                .step(&p, AREA, level(&p, plain.last.activation, a), l, None)
+                .unwrap();
+            plain_solves += st.iterations;
+            plain = st.state;
+        }
+        let ratio = solves as f64 / plain_solves as f64;
+        eprintln!(
+            "a = {a}: {:.3} FE solves per step (unit, {:.2} trials) vs {:.3} (plain): ratio {ratio:.2}",
+            solves as f64 / n as f64,
+            trials as f64 / n as f64,
+            plain_solves as f64 / n as f64
+        );
+        assert!(ratio <= 3.0, "{ratio}");
+        assert!(trials as f64 / n as f64 <= 3.0);
+    }
+}
+
+/// With the error control of the CE–SEE update (cold trials, each the
+/// controlled step map), every step still ends in equilibrium.
+#[test]
+fn error_controlled_steps_end_in_equilibrium() {
+    let p = Params::default();
+    let u = unit(0.04, 0.3, true);
+    let s = setup(&p, &u);
+    let path0 = 0.1 + L0 * 0.3f64.cos() * 1.05;
+    let mut mt = MusculotendonFE::initialize(disc(), &s, path0, 0.0, 1.0).unwrap();
+    for k in 1..=5 {
+        let a0 = mt.muscle.last.activation;
+        let path = path0 + 0.002 * L0 * k as f64;
+        mt = mt.step(&s, level(&p, a0, 1.0), path, Some(1e-3)).unwrap();
+        assert!(residual(&s, &mt).abs() <= s.tol(), "step {k}");
+    }
+}
