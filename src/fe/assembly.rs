@@ -33,7 +33,10 @@
 //! partial pivoting. Which factorisation a matrix gets depends on the matrix
 //! alone (a state restored elsewhere refactorises to the same bits). The
 //! symbolic factorisations are computed once per mesh, the LBLᵀ and LU ones
-//! when first needed.
+//! when first needed. The Cholesky factorisation works on the matrix
+//! permuted once per mesh by its AMD ordering: each factorisation gathers
+//! the constrained values into the permuted triangle through a fixed map
+//! instead of faer sorting and permuting the whole matrix, to the same bits.
 
 use std::sync::{Arc, OnceLock};
 
@@ -41,10 +44,10 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::solvers::Solve;
 use faer::perm::Perm;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, IntranodeLbltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, IntranodeLbltRef, LltRef,
+    SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
 };
-use faer::sparse::linalg::solvers::{Llt, Lu, SymbolicLlt, SymbolicLu};
+use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::linalg::{LuError, SupernodalThreshold};
 use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{MatMut, Side};
@@ -73,9 +76,9 @@ pub struct Pattern {
     bc_diagonal: Vec<usize>,
     /// Whether each dof is prescribed.
     pub prescribed: Vec<bool>,
-    /// Symbolic Cholesky (computed with the pattern), supernodal LBLᵀ and
-    /// LU (on first use).
-    llt: SymbolicLlt<usize>,
+    /// Symbolic Cholesky (computed with the pattern) on the AMD-permuted
+    /// matrix, supernodal LBLᵀ and LU (on first use).
+    llt: Arc<PermutedCholesky>,
     lblt: OnceLock<Result<Arc<SymbolicCholesky<usize>>, String>>,
     lu: OnceLock<Result<SymbolicLu<usize>, String>>,
 }
@@ -179,8 +182,7 @@ impl Pattern {
             }
         }
         let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        let llt = SymbolicLlt::try_new(symbolic.as_ref(), Side::Lower)
-            .map_err(|e| format!("symbolic Cholesky factorisation failed: {e:?}"))?;
+        let llt = Arc::new(PermutedCholesky::new(symbolic.as_ref())?);
         Ok(Pattern {
             n_nodes,
             neighbours,
@@ -349,12 +351,34 @@ impl Pattern {
     }
 
     /// The Cholesky factorisation of the constrained values; `Err` when they
-    /// are not (numerically) positive definite.
+    /// are not (numerically) positive definite. The values are gathered
+    /// into the permuted triangle ([`PermutedCholesky`]) and factorised
+    /// there without faer's own permutation of the matrix.
     fn factorize_llt(&self, constrained: &[f64]) -> Result<Factor, String> {
-        let mat = SparseColMatRef::new(self.symbolic_ref(), constrained);
-        Llt::try_new_with_symbolic(self.llt.clone(), mat, Side::Lower)
-            .map(|f| Factor::Cholesky(Arc::new(f)))
-            .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))
+        let order = &self.llt;
+        let permuted: Vec<f64> = order.source.iter().map(|&s| constrained[s]).collect();
+        let symbolic = &order.symbolic;
+        let mut values = try_filled(symbolic.len_val(), 0.0, "the Cholesky factor")?;
+        let par = faer::get_global_parallelism();
+        let mut scratch = MemBuffer::try_new(
+            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        )
+        .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?;
+        symbolic
+            .factorize_numeric_llt(
+                &mut values,
+                SparseColMatRef::new(order.numeric.as_ref(), &permuted),
+                order.side,
+                Default::default(),
+                par,
+                MemStack::new(&mut scratch),
+                Default::default(),
+            )
+            .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?;
+        Ok(Factor::Cholesky(Arc::new(Cholesky {
+            order: order.clone(),
+            values,
+        })))
     }
 
     /// The supernodal LBLᵀ factorisation of the constrained values, with
@@ -480,6 +504,134 @@ impl Pattern {
     }
 }
 
+/// The Cholesky factorisation's symbolic part on the matrix permuted once
+/// and for all by faer's AMD ordering of the pattern: the permuted
+/// matrix's triangle that faer's numeric factorisation reads (lower for its
+/// supernodal variant, upper for its simplicial one) with, per entry, the
+/// slot of the pattern it comes from (the original lower triangle's, as
+/// faer takes it); its symbolic analysis with the identity ordering is
+/// that of the AMD ordering (same elimination tree, column counts and
+/// supernodes: the same graph), with the same choice of variant. So a
+/// factorisation gathers its values instead of having faer sort and
+/// permute the whole matrix each time, and factorises to the same bits.
+#[derive(Debug)]
+struct PermutedCholesky {
+    /// Symbolic factorisation of the permuted matrix (identity ordering).
+    symbolic: SymbolicCholesky<usize>,
+    /// The triangle the numeric factorisation reads, its side and sources.
+    numeric: SymbolicSparseColMat<usize>,
+    side: Side,
+    source: Vec<usize>,
+    /// The AMD ordering: row i of the permuted matrix is row `forward[i]`.
+    forward: Vec<usize>,
+}
+
+impl PermutedCholesky {
+    fn new(a: SymbolicSparseColMatRef<'_, usize>) -> Result<PermutedCholesky, String> {
+        let failed = |e| format!("symbolic Cholesky factorisation failed: {e:?}");
+        let amd =
+            factorize_symbolic_cholesky(a, Side::Lower, SymmetricOrdering::Amd, Default::default())
+                .map_err(failed)?;
+        let n = a.nrows();
+        let (forward, inverse) = match amd.perm() {
+            Some(perm) => {
+                let (f, i) = perm.arrays();
+                (f.to_vec(), i.to_vec())
+            }
+            None => ((0..n).collect(), (0..n).collect()),
+        };
+        let supernodal = matches!(amd.raw(), SymbolicCholeskyRaw::Supernodal(_));
+        // The original lower triangle's entries at their permuted places,
+        // as (column, row, slot) of the permuted lower triangle.
+        let mut lower = Vec::new();
+        for col in 0..n {
+            for slot in a.col_ptr()[col]..a.col_ptr()[col + 1] {
+                let row = a.row_idx()[slot];
+                if row >= col {
+                    let (i, j) = (inverse[row], inverse[col]);
+                    lower.push((i.min(j), i.max(j), slot));
+                }
+            }
+        }
+        let csc = |entries: &mut Vec<(usize, usize, usize)>| {
+            entries.sort_unstable();
+            let mut col_ptr = vec![0usize; n + 1];
+            for &(c, _, _) in entries.iter() {
+                col_ptr[c + 1] += 1;
+            }
+            for c in 0..n {
+                col_ptr[c + 1] += col_ptr[c];
+            }
+            let rows = entries.iter().map(|e| e.1).collect();
+            let source = entries.iter().map(|e| e.2).collect::<Vec<_>>();
+            (
+                SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows),
+                source,
+            )
+        };
+        let mut upper: Vec<_> = lower.iter().map(|&(c, r, s)| (r, c, s)).collect();
+        let (upper, upper_source) = csc(&mut upper);
+        let threshold = if supernodal {
+            SupernodalThreshold::FORCE_SUPERNODAL
+        } else {
+            SupernodalThreshold::FORCE_SIMPLICIAL
+        };
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: threshold,
+            ..Default::default()
+        };
+        let symbolic = factorize_symbolic_cholesky(
+            upper.as_ref(),
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            params,
+        )
+        .map_err(failed)?;
+        let (numeric, side, source) = if supernodal {
+            let (l, s) = csc(&mut lower);
+            (l, Side::Lower, s)
+        } else {
+            (upper, Side::Upper, upper_source)
+        };
+        Ok(PermutedCholesky {
+            symbolic,
+            numeric,
+            side,
+            source,
+            forward,
+        })
+    }
+}
+
+/// A Cholesky factorisation ([`Pattern::factorize`]) of the permuted
+/// matrix ([`PermutedCholesky`]).
+pub struct Cholesky {
+    order: Arc<PermutedCholesky>,
+    values: Vec<f64>,
+}
+
+impl Cholesky {
+    /// Solve with the permuted factor: b permuted, solved, permuted back
+    /// (what faer's own permuted solve does).
+    fn solve_in_place(&self, b: &mut [f64]) {
+        let n = b.len();
+        let forward = &self.order.forward;
+        let mut y: Vec<f64> = forward.iter().map(|&f| b[f]).collect();
+        let symbolic = &self.order.symbolic;
+        let par = faer::get_global_parallelism();
+        let mut scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, par));
+        LltRef::new(symbolic, &self.values).solve_in_place_with_conj(
+            faer::Conj::No,
+            MatMut::from_column_major_slice_mut(&mut y, n, 1),
+            par,
+            MemStack::new(&mut scratch),
+        );
+        for (&f, v) in forward.iter().zip(y) {
+            b[f] = v;
+        }
+    }
+}
+
 /// A supernodal LBLᵀ factorisation ([`Pattern::factorize`]): the factor's
 /// values, the 2 × 2 pivots' subdiagonal and the pivoting permutation, with
 /// the symbolic structure they belong to.
@@ -513,7 +665,7 @@ impl BunchKaufman {
 /// A numeric factorisation of the constrained tangent.
 #[derive(Clone)]
 pub enum Factor {
-    Cholesky(Arc<Llt<usize, f64>>),
+    Cholesky(Arc<Cholesky>),
     BunchKaufman(Arc<BunchKaufman>),
     Lu(Arc<Lu<usize, f64>>),
 }
@@ -532,7 +684,7 @@ impl Factor {
     pub fn solve_in_place(&self, b: &mut [f64]) {
         let n = b.len();
         match self {
-            Factor::Cholesky(f) => f.solve_in_place(MatMut::from_column_major_slice_mut(b, n, 1)),
+            Factor::Cholesky(f) => f.solve_in_place(b),
             Factor::BunchKaufman(f) => f.solve_in_place(b),
             Factor::Lu(f) => f.solve_in_place(MatMut::from_column_major_slice_mut(b, n, 1)),
         }
@@ -671,6 +823,74 @@ mod tests {
             p.add_element(&mut values, e, tet, &k);
         }
         values
+    }
+
+    /// The Cholesky factorisation on the once-permuted matrix solves to the
+    /// same bits as faer's own (which permutes the matrix at every
+    /// factorisation): on a tangent of a mesh large enough for the
+    /// supernodal variant, and on the two tetrahedra (simplicial).
+    #[test]
+    fn permuted_cholesky_solves_to_faers_bits() {
+        use crate::fe::discretization::{Discretization, Ends};
+        use crate::fe::mesh::{FibreLayout, Resolution};
+        use crate::law::{FibreHistory, FibreRate, Params};
+        use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+        let faer_solve = |p: &Pattern, values: &[f64], b: &mut [f64]| {
+            let constrained = p.constrained(values).unwrap();
+            let symbolic = SymbolicLlt::try_new(p.symbolic_ref(), Side::Lower).unwrap();
+            let mat = SparseColMatRef::new(p.symbolic_ref(), &constrained);
+            let llt = Llt::try_new_with_symbolic(symbolic, mat, Side::Lower).unwrap();
+            let n = b.len();
+            llt.solve_in_place(MatMut::from_column_major_slice_mut(b, n, 1));
+        };
+        let d = Discretization::fusiform(
+            0.05,
+            crate::specimen::MEAN_AREA,
+            Resolution {
+                n_axial: 8,
+                n_radial: 2,
+            },
+            FibreLayout::Meridian,
+            Ends::Clamped,
+        )
+        .unwrap();
+        let x = d.reference_positions();
+        let hist = vec![
+            FibreHistory {
+                lambda_s: 1.0,
+                lambda_m: 1.0
+            };
+            d.n_elements()
+        ];
+        let ev = d
+            .evaluate(
+                &Params::default(),
+                &x,
+                0.0,
+                &hist,
+                FibreRate::Step { h: 1e-3 },
+                true,
+            )
+            .unwrap();
+        let values = ev.tangent.unwrap();
+        let (constrained, _) = constrained_two_tets();
+        let gram = shifted_gram(&constrained, 0.5);
+        for (p, values) in [(&d.pattern, &values), (&constrained, &gram)] {
+            assert!(
+                matches!(p.llt.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+                    == (p.n_nodes > 5)
+            );
+            let f = p.factorize(values).unwrap();
+            assert_eq!(f.kind(), FactorKind::Cholesky, "{} nodes", p.n_nodes);
+            let b = pseudo_random(3 * p.n_nodes, 7);
+            let (mut ours, mut theirs) = (b.clone(), b);
+            f.solve_in_place(&mut ours);
+            faer_solve(p, values, &mut theirs);
+            assert!(ours
+                .iter()
+                .zip(&theirs)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
     }
 
     /// The largest residual |K x − b| of `f`'s solve of the constrained

@@ -268,7 +268,7 @@ impl Muscle {
         let (mut iterations, mut factorizations, mut residuals) = (0, 0, 0);
         let mut try_below = RELAX_TRY_BELOW;
         // The level is raised over the first RELAX_RAMP steps (pseudo-time:
-        // only the steady state counts), then held while h doubles.
+        // only the steady state counts), then held while h grows RELAX_GROWTH×.
         while h <= 1e6 {
             let (a0, a1) = if steps < RELAX_RAMP {
                 let at = |k: usize| activation * k as f64 / RELAX_RAMP as f64;
