@@ -18,10 +18,7 @@ use crate::fe::step_map::{
 };
 use crate::fmi2::{Model, ModelError, StepError, VarType, Variability};
 use crate::fmus::common::{check_range, check_unit_interval, SUBSTEP_RTOL};
-use crate::fmus::table::{
-    self, integer, model_access, output, parameter, real, scene_interface, variables, Check, Row,
-    STATIC_LAW,
-};
+use crate::fmus::table::{self, model_access, output, scene_interface, variables, Row, STATIC_LAW};
 use crate::law::activation::Decay;
 use crate::law::params::{Range, AREA_RANGE, L0_RANGE, LENGTH_RANGE};
 use crate::law::{ParamId, Params};
@@ -47,6 +44,64 @@ const GRADING_RANGE: Range = Range {
     min: 0.0,
     max: crate::fe::mesh::MAX_GRADING,
 };
+
+/// The mesh parameters' rows, shared by the FE models (`HillMuscleFE` and
+/// the FE musculotendon unit): one declaration of each name, range and
+/// description.
+pub(crate) mod mesh_rows {
+    use super::{DEFAULT_GRADING, DEFAULT_MESH, GRADING_RANGE, N_AXIAL_RANGE, N_RADIAL_RANGE};
+    use crate::fmus::table::{integer, parameter, real, Check, Row};
+
+    /// `n_axial`.
+    pub(crate) const fn n_axial<V>() -> Row<V> {
+        parameter(
+            "n_axial",
+            "Mesh: element layers along the axis",
+            integer(DEFAULT_MESH.n_axial as i32, N_AXIAL_RANGE),
+            Check::Closed,
+        )
+    }
+
+    /// `n_radial`.
+    pub(crate) const fn n_radial<V>() -> Row<V> {
+        parameter(
+            "n_radial",
+            "Mesh: rings in the cross-section",
+            integer(DEFAULT_MESH.n_radial as i32, N_RADIAL_RANGE),
+            Check::Closed,
+        )
+    }
+
+    /// `axial_grading`.
+    pub(crate) const fn axial_grading<V>() -> Row<V> {
+        parameter(
+        "axial_grading",
+        "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
+        real("1", Some(DEFAULT_GRADING.axial), Some(GRADING_RANGE)),
+        Check::Finite,
+        )
+    }
+
+    /// `radial_grading`.
+    pub(crate) const fn radial_grading<V>() -> Row<V> {
+        parameter(
+        "radial_grading",
+        "Mesh: rings of the cross-section graded toward the lateral surface, radius u + g u (1 - u) of the section's radius, u = i / n_radial; outer ring about (1 - g) times the uniform width",
+        real("1", Some(DEFAULT_GRADING.radial), Some(GRADING_RANGE)),
+        Check::Finite,
+        )
+    }
+
+    /// `fibre_layout`.
+    pub(crate) const fn fibre_layout<V>() -> Row<V> {
+        parameter(
+            "fibre_layout",
+            "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
+            integer(0, (0, 1)),
+            Check::Closed,
+        )
+    }
+}
 
 variables! {
     /// A variable of `HillMuscleFE`, in table order: the law's parameters,
@@ -74,36 +129,11 @@ variables! {
         SubstepTolerance = table::substep_tolerance(
             "Tolerance of the estimated local error of the SEE stress per piece (largest over the elements), as a fraction of sigma0",
         ) => Real(m.substep_tolerance);
-        NAxial = parameter(
-            "n_axial",
-            "Mesh: element layers along the axis",
-            integer(DEFAULT_MESH.n_axial as i32, N_AXIAL_RANGE),
-            Check::Closed,
-        ) => Integer(m.n_axial);
-        NRadial = parameter(
-            "n_radial",
-            "Mesh: rings in the cross-section",
-            integer(DEFAULT_MESH.n_radial as i32, N_RADIAL_RANGE),
-            Check::Closed,
-        ) => Integer(m.n_radial);
-        AxialGrading = parameter(
-            "axial_grading",
-            "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
-            real("1", Some(DEFAULT_GRADING.axial), Some(GRADING_RANGE)),
-            Check::Finite,
-        ) => Real(m.grading.axial);
-        RadialGrading = parameter(
-            "radial_grading",
-            "Mesh: rings of the cross-section graded toward the lateral surface, radius u + g u (1 - u) of the section's radius, u = i / n_radial; outer ring about (1 - g) times the uniform width",
-            real("1", Some(DEFAULT_GRADING.radial), Some(GRADING_RANGE)),
-            Check::Finite,
-        ) => Real(m.grading.radial);
-        FibreLayout = parameter(
-            "fibre_layout",
-            "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
-            integer(0, (0, 1)),
-            Check::Closed,
-        ) => Integer(m.fibre_layout);
+        NAxial = mesh_rows::n_axial() => Integer(m.n_axial);
+        NRadial = mesh_rows::n_radial() => Integer(m.n_radial);
+        AxialGrading = mesh_rows::axial_grading() => Real(m.grading.axial);
+        RadialGrading = mesh_rows::radial_grading() => Real(m.grading.radial);
+        FibreLayout = mesh_rows::fibre_layout() => Integer(m.fibre_layout);
         Activation = table::activation() => Real(m.command), der m.command_rate;
         Length = table::length(DEFAULT_L0)
             => Real(get m.length(), set m.length = Some(v)), der m.length_rate;

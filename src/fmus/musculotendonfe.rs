@@ -15,11 +15,12 @@ use std::marker::PhantomData;
 use std::sync::Arc;
 
 use super::common::{check_range, check_unit_interval, SUBSTEP_RTOL};
-use super::hillfe::{check_mesh, DEFAULT_AREA, DEFAULT_GRADING, DEFAULT_L0, DEFAULT_MESH};
+use super::hillfe::{
+    check_mesh, mesh_rows, DEFAULT_AREA, DEFAULT_GRADING, DEFAULT_L0, DEFAULT_MESH,
+};
 use super::musculotendon1d::{info_for, MtOutput, TendonParameters};
 use super::table::{
-    self, boolean, input, integer, model_access, output, parameter, real, variables, Check, Row,
-    STATIC_LAW,
+    self, boolean, input, model_access, output, parameter, real, variables, Check, Row, STATIC_LAW,
 };
 use crate::fe::discretization::Discretization;
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
@@ -28,23 +29,12 @@ use crate::fe::step_map::{built_with, discretization, StepLevel};
 use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError, VarType};
 use crate::law::activation::Decay;
 use crate::law::musculotendon::{Unit, UnitParams};
-use crate::law::params::{
-    Range, TendonParamId, AREA_RANGE, L0_RANGE, LENGTH_RANGE, TENDON_PARAMETERS,
-};
+use crate::law::params::{TendonParamId, AREA_RANGE, L0_RANGE, LENGTH_RANGE, TENDON_PARAMETERS};
 use crate::law::{ParamId, Params};
 use crate::muscle1d::UnitOutput;
 use crate::scene::{Scene, SceneSpec, Value};
 
 mod state;
-
-/// Mesh resolution limits: `HillMuscleFE`'s.
-const N_AXIAL_RANGE: (i32, i32) = (1, 96);
-const N_RADIAL_RANGE: (i32, i32) = (1, 16);
-/// Valid gradings: `HillMuscleFE`'s.
-const GRADING_RANGE: Range = Range {
-    min: 0.0,
-    max: crate::fe::mesh::MAX_GRADING,
-};
 
 variables! {
     /// A variable of `HillMusculotendonFE`, in table order: the law's
@@ -82,36 +72,11 @@ variables! {
         SubstepTolerance = table::substep_tolerance(
             "Tolerance of the estimated local error of the SEE stress per piece (largest over the elements), as a fraction of sigma0",
         ) => Real(m.substep_tolerance);
-        NAxial = parameter(
-            "n_axial",
-            "Mesh: element layers along the axis",
-            integer(DEFAULT_MESH.n_axial as i32, N_AXIAL_RANGE),
-            Check::Closed,
-        ) => Integer(m.n_axial);
-        NRadial = parameter(
-            "n_radial",
-            "Mesh: rings in the cross-section",
-            integer(DEFAULT_MESH.n_radial as i32, N_RADIAL_RANGE),
-            Check::Closed,
-        ) => Integer(m.n_radial);
-        AxialGrading = parameter(
-            "axial_grading",
-            "Mesh: slices graded toward the clamped end faces, x = L (u - g sin(2 pi u)/(2 pi)); end layers (1 - g) times the uniform spacing",
-            real("1", Some(DEFAULT_GRADING.axial), Some(GRADING_RANGE)),
-            Check::Finite,
-        ) => Real(m.grading.axial);
-        RadialGrading = parameter(
-            "radial_grading",
-            "Mesh: rings of the cross-section graded toward the lateral surface, radius u + g u (1 - u) of the section's radius, u = i / n_radial; outer ring about (1 - g) times the uniform width",
-            real("1", Some(DEFAULT_GRADING.radial), Some(GRADING_RANGE)),
-            Check::Finite,
-        ) => Real(m.grading.radial);
-        FibreLayout = parameter(
-            "fibre_layout",
-            "Fibre directions: 0 along the axis (the paper), 1 along the profile's meridians",
-            integer(0, (0, 1)),
-            Check::Closed,
-        ) => Integer(m.fibre_layout);
+        NAxial = mesh_rows::n_axial() => Integer(m.n_axial);
+        NRadial = mesh_rows::n_radial() => Integer(m.n_radial);
+        AxialGrading = mesh_rows::axial_grading() => Real(m.grading.axial);
+        RadialGrading = mesh_rows::radial_grading() => Real(m.grading.radial);
+        FibreLayout = mesh_rows::fibre_layout() => Integer(m.fibre_layout);
         Activation = table::activation() => Real(m.command), der m.command_rate;
         Length = path_length()
             => Real(get m.path(), set m.path = Some(v)), der m.path_rate;
