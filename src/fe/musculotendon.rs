@@ -346,11 +346,19 @@ impl MusculotendonFE {
         );
         let st = t.kept.take().expect("the equilibrium evaluates the muscle");
         let l_end = st.state.muscle.length;
+        // A step so short that a change over it overflows (h = 5e-324)
+        // leaves no rates: the next step guesses as after initialization.
+        let (fibre_rate, path_rate) = ((l_end - l_now) / h, (path - self.path) / h);
+        let finite = fibre_rate.is_finite() && path_rate.is_finite();
         let guess = Guess {
             slope: g.slope,
-            fibre_rate: (l_end - l_now) / h,
-            path_rate: (path - self.path) / h,
-            stiffness: t.slope,
+            fibre_rate: if finite { fibre_rate } else { 0.0 },
+            path_rate: if finite { path_rate } else { 0.0 },
+            stiffness: if t.slope.is_finite() {
+                t.slope
+            } else {
+                g.stiffness
+            },
         };
         let mut done = Self::finish(s, path, st, t, guess);
         if done.outputs.iter().any(|x| !x.is_finite()) {

@@ -379,3 +379,25 @@ fn error_controlled_steps_end_in_equilibrium() {
         assert!(residual(&s, &mt).abs() <= s.tol(), "step {k}");
     }
 }
+
+/// A step of h = 5e-324 (finite, > 0) after the path moved to slack
+/// completes (the tendon carries nothing); its first guess for the next step is finite (a change over
+/// h overflows) and the next, ordinary step is solved. The 1D unit's
+/// API-abuse finding, on the FE unit.
+#[test]
+fn a_tiny_step_leaves_a_finite_guess() {
+    let p = Params::default();
+    let u = unit(0.04, 0.0, true);
+    let s = setup(&p, &u);
+    let rest = 0.1 + L0;
+    let mt = MusculotendonFE::initialize(disc(), &s, rest, 0.0, 1.0).unwrap();
+    let tiny = StepLevel::new(false, p.s, 0.0, 0.0, 0.0, 5e-324, 1.0);
+    let next = mt
+        .step(&s, tiny, 0.9 * rest, None)
+        .expect("a tiny step to slack completes");
+    let g = next.guess;
+    for x in [g.slope, g.fibre_rate, g.path_rate, g.stiffness] {
+        assert!(x.is_finite(), "{g:?}");
+    }
+    next.step(&s, level(&p, 0.0, 0.0), rest, None).unwrap();
+}
