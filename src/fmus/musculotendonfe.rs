@@ -510,6 +510,10 @@ impl<S: Scene> Model for MusculotendonFEModel<S> {
         })
     }
 
+    fn check_stepping_outputs(&self) -> Result<(), String> {
+        state::check_stepping(self)
+    }
+
     fn serialize(&self, out: &mut Vec<u8>) {
         state::encode(self, out);
     }

@@ -278,3 +278,61 @@ fn check_unit_outputs(mt: &MusculotendonFE) -> Result<(), String> {
     check_range("area of the muscle", mt.muscle.muscle.disc.area, AREA_RANGE).map_err(|e| e.0)?;
     Ok(())
 }
+
+/// [`Model::check_stepping_outputs`] of the FE unit: a stepping instance's
+/// parameters are those of its last commit, so the muscle's force and active
+/// stress must be those of the restored positions with its parameters (as
+/// `HillMuscleFE`'s, to 1e-9 relative), and the unit's force, tendon strain
+/// and pennation those of the committed path at the muscle's length (the
+/// expressions the step evaluated, to rounding).
+pub(super) fn check_stepping<S: Scene>(m: &MusculotendonFEModel<S>) -> Result<(), String> {
+    let Some(mt) = &m.state else {
+        return Ok(());
+    };
+    let (mu, last, d) = (&mt.muscle.muscle, &mt.muscle.last, &mt.muscle.muscle.disc);
+    let ev = d
+        .evaluate(
+            &m.params,
+            &mu.x,
+            last.activation,
+            &last.start,
+            last.rate(),
+            false,
+        )
+        .map_err(|e| format!("the restored positions: {e}"))?;
+    let recomputed = outputs(d, d.area, mu.length, &ev, last.activation);
+    for (name, q) in [
+        ("force", Quantity::Force),
+        ("active_stress", Quantity::ActiveStress),
+    ] {
+        let (stored, value) = (mt.muscle_outputs[q as usize], recomputed[q as usize]);
+        if (stored - value).abs() > 1e-9 * value.abs().max(1.0) || !stored.is_finite() {
+            return Err(format!(
+                "the muscle's {name} = {stored} is not that of the restored positions with its parameters ({value})"
+            ));
+        }
+    }
+    let unit = m.tendon_unit();
+    let pen = unit.pennation.at(mu.length);
+    let f_m = mt.muscle_outputs[Quantity::Force as usize];
+    let (force, strain) = if unit.compliant {
+        let lt = mt.path - pen.projection;
+        (unit.tendon.force(lt).0, unit.tendon.strain(lt))
+    } else {
+        (f_m * pen.cos, 0.0)
+    };
+    let f0 = unit.tendon.f0;
+    let out = |o: UnitOutput| mt.outputs[o as usize];
+    for (name, stored, value, scale) in [
+        ("force", out(UnitOutput::Force), force, f0),
+        ("tendon_strain", out(UnitOutput::TendonStrain), strain, 1.0),
+        ("pennation", out(UnitOutput::PennationAngle), pen.angle, 1.0),
+    ] {
+        if (stored - value).abs() > 1e-12 * scale.max(value.abs()) || !stored.is_finite() {
+            return Err(format!(
+                "output {name} = {stored} is not the unit's at the committed path and fibre length ({value})"
+            ));
+        }
+    }
+    Ok(())
+}

@@ -119,3 +119,57 @@ fn a_restored_state_is_checked() {
         "a non-finite value",
     );
 }
+
+/// A stepping unit's stored outputs are recomputed from its state: those of
+/// every step pass (compliant, pennated and rigid; through a pull and a
+/// slack phase), and a stored force, tendon strain, pennation or muscle
+/// force changed by 1e-6 of itself (plus 1e-9, or 1 mN for the muscle's
+/// force, which is ~0 on a slack path) is refused.
+#[test]
+fn a_stepping_state_has_the_outputs_of_its_committed_state() {
+    for (flags, alpha) in [
+        (vec![], 0.0),
+        (vec![], 0.3),
+        (vec![(Var::CompliantTendon, false)], 0.0),
+    ] {
+        let mut m = MusculotendonFe::new();
+        m.set_integer(Var::NAxial, 6).unwrap();
+        m.set_integer(Var::NRadial, 1).unwrap();
+        m.set_real(Var::Tendon(TendonParamId::PennationAngle), alpha)
+            .unwrap();
+        for &(v, b) in &flags {
+            m.set_boolean(v, b).unwrap();
+        }
+        let rest = m.get_real(Var::Length);
+        m.set_real(Var::Activation, 0.5).unwrap();
+        m.initialize().unwrap();
+        m.check_stepping_outputs().unwrap();
+        for k in 0..6 {
+            let path = if k < 4 {
+                rest * (1.0 + 0.01 * k as f64)
+            } else {
+                0.97 * rest
+            };
+            m.set_real(Var::Length, path).unwrap();
+            if m.do_step(k as f64 * 1e-3, 1e-3).is_ok() {
+                m.check_stepping_outputs().unwrap();
+            }
+        }
+        let forge = |f: &dyn Fn(&mut MusculotendonFE)| {
+            let mut c = m.clone();
+            f(c.state.as_mut().unwrap());
+            assert!(c.check_stepping_outputs().is_err());
+        };
+        for o in [
+            FeOutput::Force,
+            FeOutput::TendonStrain,
+            FeOutput::PennationAngle,
+        ] {
+            forge(&|s| s.outputs[o as usize] = s.outputs[o as usize] * (1.0 + 1e-6) + 1e-9);
+        }
+        forge(&|s| {
+            let f = &mut s.muscle_outputs[FeQuantity::Force as usize];
+            *f = *f * (1.0 + 1e-6) + 1e-3;
+        });
+    }
+}
