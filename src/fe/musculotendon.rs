@@ -42,8 +42,9 @@ use crate::law::Params;
 
 /// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to F0:
 /// ten times the FE solve's own force tolerance
-/// ([`crate::fe::newton::RESIDUAL_TOLERANCE`]), below which F_M(L_M) is
-/// not determined.
+/// ([`crate::fe::newton::RESIDUAL_TOLERANCE`]) while |F| ≤ σ0 A, below
+/// which F_M(L_M) is not determined (the FE tolerance grows with |F|
+/// above σ0 A; this one does not yet).
 pub const EQUILIBRIUM_RTOL: f64 = 1e-9;
 
 /// The force change, in FE force tolerances, over which two trials give
