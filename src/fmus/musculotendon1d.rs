@@ -31,7 +31,7 @@ use crate::muscle1d::{Input, Muscle1D, Musculotendon1D, Output, UnitOutput};
 pub use crate::muscle1d::{DEFAULT_AREA, DEFAULT_L0};
 use crate::scene::{LawOf, Scene, SceneSpec, Value};
 
-mod state;
+pub(crate) mod state;
 
 /// An output of the FMU: the unit's ([`UnitOutput`]) and the muscle's
 /// activation level.

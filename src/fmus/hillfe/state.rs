@@ -27,7 +27,7 @@ use crate::fmus::common::{
 };
 use crate::law::activation::Decay;
 use crate::law::params::{AREA_RANGE, L0_RANGE};
-use crate::law::{FibreHistory, FibreRate, PARAMETERS};
+use crate::law::{FibreHistory, FibreRate, Params, PARAMETERS};
 use crate::scene::Scene;
 use crate::step_control::MAX_CONTROLLED_TRIES;
 
@@ -573,7 +573,7 @@ fn check_outputs<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(), Stri
     }
     check_output("ce_stretch", o(Quantity::CeStretch), lm / v)?;
     check_output("see_stretch", o(Quantity::SeeStretch), ls / v)?;
-    let (recomputed, volume) = recompute(m, c)?;
+    let (recomputed, volume) = recompute(&m.params, c)?;
     let cauchy = o(Quantity::Force) * mu.length / volume;
     for (name, q, value) in [
         (
@@ -608,13 +608,14 @@ fn check_outputs<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(), Stri
     Ok(())
 }
 
-/// The outputs of the restored muscle `c` with the parameters of `m` (the
-/// last step's activation level, start histories and rate), and its volume.
-fn recompute<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(Outputs, f64), String> {
+/// The outputs of the restored muscle `c` with parameters `p` (the last
+/// step's activation level, start histories and rate), and its volume.
+/// Shared with the FE musculotendon unit.
+pub(crate) fn recompute(p: &Params, c: &Committed) -> Result<(Outputs, f64), String> {
     let (mu, d) = (&c.muscle, &c.muscle.disc);
     let ev = d
         .evaluate(
-            &m.params,
+            p,
             &mu.x,
             c.last.activation,
             &c.last.start,
@@ -632,15 +633,26 @@ fn recompute<S: Scene>(m: &HillFEModel<S>, c: &Committed) -> Result<(Outputs, f6
 /// a stepping instance: in instantiated or initialization mode a parameter
 /// may have been set since the outputs were committed.
 pub(super) fn check_law_outputs<S: Scene>(m: &HillFEModel<S>) -> Result<(), String> {
-    let Some(c) = &m.state else {
-        return Ok(());
-    };
-    let (recomputed, _) = recompute(m, c)?;
+    match &m.state {
+        Some(c) => check_law_quantities(&m.params, c, &m.outputs),
+        None => Ok(()),
+    }
+}
+
+/// `stored`'s force and active stress against those of the restored muscle
+/// `c` with parameters `p` (1e-9 relative). Shared with the FE
+/// musculotendon unit.
+pub(crate) fn check_law_quantities(
+    p: &Params,
+    c: &Committed,
+    stored: &Outputs,
+) -> Result<(), String> {
+    let (recomputed, _) = recompute(p, c)?;
     for (name, q) in [
         ("force", Quantity::Force),
         ("active_stress", Quantity::ActiveStress),
     ] {
-        let (stored, value) = (m.outputs[q as usize], recomputed[q as usize]);
+        let (stored, value) = (stored[q as usize], recomputed[q as usize]);
         if (stored - value).abs() > 1e-9 * value.abs().max(1.0) || !stored.is_finite() {
             return Err(format!(
                 "output {name} = {stored} is not that of the restored muscle with its parameters ({value})"

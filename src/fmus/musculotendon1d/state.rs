@@ -158,14 +158,30 @@ fn check_unit_outputs<C: Components>(u: &Musculotendon1D<C>) -> Result<(), Strin
             u.muscle.lambda
         ));
     }
-    let angle = out(UnitOutput::PennationAngle);
+    check_tendon_outputs(
+        out(UnitOutput::PennationAngle),
+        out(UnitOutput::Force),
+        out(UnitOutput::TendonStrain),
+        stress,
+    )
+}
+
+/// A unit's stored pennation in [0, α_max], and its tendon force of the sign
+/// its strain gives: a slack tendon (ε < 0) carrying nothing, a stretched
+/// one pulling, a rigid one (ε = 0) carrying the muscle's sign. Shared by
+/// both units' restore checks.
+pub(crate) fn check_tendon_outputs(
+    angle: f64,
+    force: f64,
+    strain: f64,
+    stress: f64,
+) -> Result<(), String> {
     if !(0.0..=MIN_COS.acos()).contains(&angle) {
         return Err(format!(
             "output pennation = {angle} must be in [0, {}] (the largest angle)",
             MIN_COS.acos()
         ));
     }
-    let (force, strain) = (out(UnitOutput::Force), out(UnitOutput::TendonStrain));
     let consistent = if strain < 0.0 {
         force == 0.0
     } else if strain > 0.0 {

@@ -9,16 +9,18 @@
 
 use super::{all_variables, check_mesh, MusculotendonFEModel, Var};
 use crate::fe::musculotendon::{Guess, MusculotendonFE, UnitOutput, N_UNIT};
-use crate::fe::step_map::{outputs, Outputs, Quantity, N_QUANTITIES};
+use crate::fe::step_map::{Quantity, N_QUANTITIES};
 use crate::fmi2::{Model, ModelError};
 use crate::fmus::codec::{
     check_output, check_scene_constants, decode_from, encode_onto, wire_struct, MaybeF64,
 };
 use crate::fmus::common::{check_range, check_restored_drive, check_unit_interval};
-use crate::fmus::hillfe::state::{committed_state, restore_committed, CommittedState};
+use crate::fmus::hillfe::state::{
+    check_law_quantities, committed_state, recompute, restore_committed, CommittedState,
+};
+use crate::fmus::musculotendon1d::state::check_tendon_outputs;
 use crate::law::activation::Decay;
 use crate::law::params::{AREA_RANGE, L0_RANGE, TENDON_PARAMETERS};
-use crate::law::pennation::MIN_COS;
 use crate::law::{Params, PARAMETERS};
 use crate::scene::Scene;
 
@@ -211,7 +213,7 @@ fn restore_unit(u: UnitState, p: &Params) -> Result<MusculotendonFE, String> {
 /// law's parameters, which may have been set since the commit), the stress
 /// the force over the area and the level the committed one, bit for bit.
 fn check_muscle_outputs(mt: &MusculotendonFE, p: &Params) -> Result<(), String> {
-    let (mu, last, d) = (&mt.muscle.muscle, &mt.muscle.last, &mt.muscle.muscle.disc);
+    let (last, d) = (&mt.muscle.last, &mt.muscle.muscle.disc);
     let o = |q: Quantity| mt.muscle_outputs[q as usize];
     check_output("stress", o(Quantity::Stress), o(Quantity::Force) / d.area)?;
     check_unit_interval("committed activation level", last.activation).map_err(|e| e.0)?;
@@ -220,12 +222,7 @@ fn check_muscle_outputs(mt: &MusculotendonFE, p: &Params) -> Result<(), String> 
         o(Quantity::ActivationLevel),
         last.activation,
     )?;
-    let recomputed: Outputs = {
-        let ev = d
-            .evaluate(p, &mu.x, last.activation, &last.start, last.rate(), false)
-            .map_err(|e| format!("the restored positions: {e}"))?;
-        outputs(d, d.area, mu.length, &ev, last.activation)
-    };
+    let (recomputed, _) = recompute(p, &mt.muscle)?;
     for q in [
         Quantity::FibreStretch,
         Quantity::VolumeRatioMin,
@@ -254,26 +251,12 @@ fn check_unit_outputs(mt: &MusculotendonFE) -> Result<(), String> {
         out(UnitOutput::FibreLength),
         mt.muscle.muscle.length,
     )?;
-    let angle = out(UnitOutput::PennationAngle);
-    if !(0.0..=MIN_COS.acos()).contains(&angle) {
-        return Err(format!(
-            "output pennation = {angle} must be in [0, {}] (the largest angle)",
-            MIN_COS.acos()
-        ));
-    }
-    let (force, strain) = (out(UnitOutput::Force), out(UnitOutput::TendonStrain));
-    let consistent = if strain < 0.0 {
-        force == 0.0
-    } else if strain > 0.0 {
-        force >= 0.0
-    } else {
-        force == 0.0 || force.signum() == stress.signum()
-    };
-    if !consistent {
-        return Err(format!(
-            "output force = {force} is not a tendon force at tendon_strain = {strain} (muscle stress {stress})"
-        ));
-    }
+    check_tendon_outputs(
+        out(UnitOutput::PennationAngle),
+        out(UnitOutput::Force),
+        out(UnitOutput::TendonStrain),
+        stress,
+    )?;
     check_range("L0 of the muscle", mt.muscle.muscle.disc.l0, L0_RANGE).map_err(|e| e.0)?;
     check_range("area of the muscle", mt.muscle.muscle.disc.area, AREA_RANGE).map_err(|e| e.0)?;
     Ok(())
@@ -289,29 +272,8 @@ pub(super) fn check_stepping<S: Scene>(m: &MusculotendonFEModel<S>) -> Result<()
     let Some(mt) = &m.state else {
         return Ok(());
     };
-    let (mu, last, d) = (&mt.muscle.muscle, &mt.muscle.last, &mt.muscle.muscle.disc);
-    let ev = d
-        .evaluate(
-            &m.params,
-            &mu.x,
-            last.activation,
-            &last.start,
-            last.rate(),
-            false,
-        )
-        .map_err(|e| format!("the restored positions: {e}"))?;
-    let recomputed = outputs(d, d.area, mu.length, &ev, last.activation);
-    for (name, q) in [
-        ("force", Quantity::Force),
-        ("active_stress", Quantity::ActiveStress),
-    ] {
-        let (stored, value) = (mt.muscle_outputs[q as usize], recomputed[q as usize]);
-        if (stored - value).abs() > 1e-9 * value.abs().max(1.0) || !stored.is_finite() {
-            return Err(format!(
-                "the muscle's {name} = {stored} is not that of the restored positions with its parameters ({value})"
-            ));
-        }
-    }
+    check_law_quantities(&m.params, &mt.muscle, &mt.muscle_outputs)?;
+    let mu = &mt.muscle.muscle;
     let unit = m.tendon_unit();
     let pen = unit.pennation.at(mu.length);
     let f_m = mt.muscle_outputs[Quantity::Force as usize];
