@@ -1,5 +1,5 @@
 """Subprocess half of test_libcosim.py: run a muscle FMU (HillMuscle1D,
-HillMusculotendon1D: any FMU with `length` and `activation` inputs and a
+HillMusculotendon1D, HillMusculotendonFE: any FMU with `length` and `activation` inputs and a
 `force` output) under libcosim (libcosimpy), so that a crash in libcosim
 fails the test instead of killing pytest (and libcosim's and fmpy's copies
 of the FMU never share a process).
@@ -14,6 +14,8 @@ PLAN_JSON (floats as float.hex strings, so that they cross exactly):
   the activation command;
 - ``params`` (optional): {name: value} Real parameters, given to libcosim as
   initial values (applied before the FMU leaves initialization mode);
+- ``integers`` (optional): {name: value} Integer parameters (e.g. an FE
+  unit's mesh), given to libcosim as initial values the same way;
 - ``initial`` (optional): {"length": ..., "activation": ...}, the inputs'
   values at initialization (default: those of step 0).
 
@@ -57,6 +59,8 @@ def main(fmu, plan_json):
 
     for name, value in plan.get("params", {}).items():
         assert execution.real_initial_value(index, vr[name], float.fromhex(value)), f"initial value of {name}"
+    for name, value in plan.get("integers", {}).items():
+        assert execution.integer_initial_value(index, vr[name], int(value)), f"initial value of {name}"
     assert execution.real_initial_value(index, vr["length"], initial.get("length", lengths[0]))
     assert execution.real_initial_value(index, vr["activation"], initial.get("activation", activations[0]))
 

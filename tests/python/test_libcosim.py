@@ -8,11 +8,13 @@ inputs through fmpy's FMU2Slave (set the inputs, then doStep(t_i, h)) and
 compares the traces point by point, matched on the communication time.
 
 Two input signals: a prescribed stretch-release cycle at constant activation,
-run for HillMuscle1D (its length input the muscle's length) and for
-HillMusculotendon1D (its length input the path length: the cycle pulls the
-path above its declared start), and the length and activation command that
-the MuJoCo elbow (examples/arm_mujoco.py, explicit scheme) fed HillMuscle1D
-in a coupled run.
+run for HillMuscle1D (its length input the muscle's length) and for the
+musculotendon units HillMusculotendon1D and HillMusculotendonFE (their length
+input the path length: the cycle pulls the path above its declared start; the
+FE unit on a 4 x 1 mesh, set as a start value in both importers, as
+test_musculotendon.py runs it: its default mesh costs ~0.3 s a step), and the
+length and activation command that the MuJoCo elbow (examples/arm_mujoco.py,
+explicit scheme) fed HillMuscle1D in a coupled run.
 
 Input timing is the same in both importers: a value set before step i (fmpy:
 setReal; libcosim: the override manipulator, applied when the step commences)
@@ -45,6 +47,9 @@ STEP_NS = 1_000_000  # 1 ms, exact in libcosim's integer nanoseconds
 N = 600
 ACTIVATION = 1.0
 MT_PATH = Path(os.environ.get("HILL_MUSCULOTENDON_FMU", REPO / "dist" / "HillMusculotendon1D.fmu"))
+MT_FE_PATH = REPO / "dist" / "HillMusculotendonFE.fmu"
+# The FE unit's mesh (Integer start values), as in test_musculotendon.py.
+FE_MESH = (("n_axial", 4), ("n_radial", 1))
 
 
 @dataclass(frozen=True)
@@ -57,28 +62,31 @@ class Case:
     fmu: Path
     start: float
     pull: float
+    # Integer start values, set before initialization in both importers.
+    integers: tuple = ()
 
     def lengths(self):
         h = STEP_NS * 1e-9
         return [self.start * (1.0 + self.pull * (1.0 - math.cos(2.0 * math.pi * i * h / 0.5))) for i in range(N)]
 
 
-CASES = ("HillMuscle1D", "HillMusculotendon1D")
+CASES = ("HillMuscle1D", "HillMusculotendon1D", "HillMusculotendonFE")
 
 
 @pytest.fixture(scope="module", params=CASES)
 def case(request, fmu_path):
-    """HillMuscle1D: from L0 up to 20 % strain (start = L0). HillMusculotendon1D:
-    its path from the declared start (tendon slack length + L0) up by 0.2 L0
-    (L0 the fibres' rest length), the same pull on the fibres were the tendon
-    rigid."""
+    """HillMuscle1D: from L0 up to 20 % strain (start = L0). The units
+    (HillMusculotendon1D, HillMusculotendonFE on FE_MESH): the path from the
+    declared start (tendon slack length + L0) up by 0.2 L0 (L0 the fibres'
+    rest length), the same pull on the fibres were the tendon rigid."""
     if request.param == "HillMuscle1D":
         return Case(request.param, fmu_path, el.L0, 0.1)
-    if not MT_PATH.is_file():
-        pytest.fail(f"{MT_PATH} not found: build the FMUs first with `scripts/build_fmus.sh`", pytrace=False)
-    variables = el.load_fmu(MT_PATH).variables
+    path, integers = (MT_PATH, ()) if request.param == "HillMusculotendon1D" else (MT_FE_PATH, FE_MESH)
+    if not path.is_file():
+        pytest.fail(f"{path} not found: build the FMUs first with `scripts/build_fmus.sh`", pytrace=False)
+    variables = el.load_fmu(path).variables
     start, L0 = float(variables["length"].start), float(variables["L0"].start)
-    return Case(request.param, MT_PATH, start, 0.1 * L0 / start)
+    return Case(request.param, path, start, 0.1 * L0 / start, integers)
 
 
 def run_worker(fmu_path, plan):
@@ -95,7 +103,8 @@ def run_worker(fmu_path, plan):
 
 @pytest.fixture(scope="module")
 def libcosim_run(case):
-    plan = {"step_ns": STEP_NS, "activation": ACTIVATION.hex(), "lengths": [x.hex() for x in case.lengths()]}
+    plan = {"step_ns": STEP_NS, "activation": ACTIVATION.hex(), "lengths": [x.hex() for x in case.lengths()],
+            "integers": dict(case.integers)}
     return run_worker(case.fmu, plan)
 
 
@@ -114,6 +123,8 @@ def fmpy_forces(case, h_of_step):
     try:
         L = case.lengths()
         vrs = [unit.vr["length"], unit.vr["activation"]]
+        for name, value in case.integers:
+            unit.slave.setInteger([unit.vr[name]], [value])
         unit.initialize(L[0], ACTIVATION)
         force[0] = unit.slave.getReal([unit.vr["force"]])[0]
         for i in range(N):
@@ -158,9 +169,13 @@ def test_libcosim_force_matches_fmpy(case, libcosim_run, fmpy_fixed_h):
     communication point. Measured: HillMuscle1D max |dF| = 2.0e-12 N of
     171.7 N (1.2e-14 relative), bitwise equal at 387 of 600 points;
     HillMusculotendon1D 1.2e-11 N of 846.6 N (1.4e-14), bitwise equal at
-    502 of 600. libcosim passes h = t_{i+1} - t_i computed from its
-    integer-nanosecond clock (see the next test), which is not always the
-    double 1e-3."""
+    502 of 600; HillMusculotendonFE 1.3e-7 N of 810.3 N (1.6e-10), bitwise
+    equal at 30 of 600: its FE Newton solve and the tendon's equilibrium stop
+    within their tolerances (1e-10 and 1e-9 of F0 = 624 N, 7.7e-10 of the
+    scale), so a change of h in the last bits can move the force that far,
+    not by round-off only. libcosim passes h = t_{i+1} - t_i computed
+    from its integer-nanosecond clock (see the next test), which is not
+    always the double 1e-3."""
     idx, force = libcosim_force(libcosim_run)
     ours = np.array([fmpy_fixed_h[int(i)] for i in idx])
     scale = np.max(abs(ours))
