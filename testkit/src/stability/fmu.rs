@@ -159,6 +159,15 @@ impl<M: Model> Fmu<M> {
         (st, msg)
     }
 
+    /// fmi2GetReal of one variable by name.
+    pub fn get_real(&self, name: &str) -> Result<f64, String> {
+        let vr = self.vr(name)?;
+        let mut v = f64::NAN;
+        // SAFETY: live instance, one-element arrays.
+        let st = unsafe { api::get_real::<M>(self.c, &vr, 1, &mut v) };
+        self.check(&format!("fmi2GetReal({name})"), st).map(|_| v)
+    }
+
     pub fn outputs(&self, into: &mut Vec<f64>) -> Result<(), String> {
         into.clear();
         into.resize(self.out_vrs.len(), f64::NAN);

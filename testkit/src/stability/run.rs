@@ -90,9 +90,13 @@ pub struct Run {
     pub names: Vec<&'static str>,
     pub steps: usize,
     pub discards: Vec<Discard>,
-    /// stress and active_stress at the cell's communication points 0..=n
-    /// (recorded only for a comparison with a reference run).
+    /// The two compared outputs ([`Hooks::compared`]) at the cell's
+    /// communication points 0..=n (recorded only for a comparison with a
+    /// reference run).
     pub samples: Vec<[f64; 2]>,
+    /// The scales of the compared outputs' deviations: sigma0 for a stress,
+    /// F0 = sigma0 · area (the FMU's `area`) for `force`.
+    pub scales: [f64; 2],
     pub nonfinite: Vec<String>,
     pub violations: Vec<String>,
     /// Steps with a bound violated / an output not finite.
@@ -130,8 +134,12 @@ impl Counts {
 
 /// Agreement of the coarse run with the run at h / [`FINE_FACTOR`] at the
 /// coarse communication points both reached: the largest
-/// |x − x_ref| / max(sigma0, |x_ref|) for x = stress and active_stress, and
-/// the time it occurs.
+/// |x − x_ref| / max(scale, |x_ref|) for the two compared outputs
+/// ([`Hooks::compared`]: stress and active_stress of a muscle, force and
+/// stress of a unit; the scale sigma0 for a stress, F0 = sigma0 · area for
+/// a force), and the time it occurs. The fields are named after the
+/// muscle's outputs: `stress` is the first compared output, `active` the
+/// second.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Agreement {
     pub stress: f64,
@@ -235,6 +243,14 @@ pub(crate) fn execute_inner<M: Model>(
     };
     let [first, second] = checker.hooks.compared;
     let (i_stress, i_active) = (idx(first)?, idx(second)?);
+    let sigma0 = checker.params.sigma0;
+    for (scale, name) in run.scales.iter_mut().zip([first, second]) {
+        *scale = if name == "force" {
+            sigma0 * fmu.get_real("area")?
+        } else {
+            sigma0
+        };
+    }
     let mut out = Vec::new();
     fmu.outputs(&mut out)?;
     check_sample(&fmu, checker, &out, prog.stretch0, run, 0.0);
@@ -431,8 +447,7 @@ pub fn run_cell_named<M: Model>(
             )),
         ),
         _ => (
-            fine.as_ref()
-                .map(|f| agreement(&coarse, f, &checker.params, cell.h)),
+            fine.as_ref().map(|f| agreement(&coarse, f, cell.h)),
             fine_skipped,
         ),
     };
@@ -459,7 +474,7 @@ pub(crate) fn short_name(type_name: &'static str) -> &'static str {
     type_name.rsplit("::").next().unwrap_or(type_name)
 }
 
-pub(crate) fn agreement(coarse: &Run, fine: &Run, p: &Params, h: f64) -> Agreement {
+pub(crate) fn agreement(coarse: &Run, fine: &Run, h: f64) -> Agreement {
     let mut a = Agreement {
         points: coarse.samples.len().min(fine.samples.len()),
         ..Agreement::default()
@@ -470,7 +485,7 @@ pub(crate) fn agreement(coarse: &Run, fine: &Run, p: &Params, h: f64) -> Agreeme
             (0, &mut a.stress, &mut a.stress_t),
             (1, &mut a.active, &mut a.active_t),
         ] {
-            let e = (c[k] - f[k]).abs() / p.sigma0.max(f[k].abs());
+            let e = (c[k] - f[k]).abs() / coarse.scales[k].max(f[k].abs());
             // NaN counts as the worst (it cannot occur with finite outputs).
             if e > *err || e.is_nan() {
                 *err = if e.is_nan() { f64::INFINITY } else { e };
