@@ -10,6 +10,8 @@
 //!
 //! Options: `--subset` (the CI subset), `--model NAME` (one model only:
 //! writes `stability-<name>.md`/`.csv`),
+//! `--d LIST`, `--h LIST` (comma-separated values of D resp. h: a reduced
+//! selection, which the page's header names with the cells left out),
 //! `--out DIR` (default `docs`),
 //! `--baseline CSV` (a CSV of an earlier run: adds a before/after section),
 //! `--csv-only`. `STABILITY_THREADS` sets the worker threads.
@@ -20,12 +22,27 @@ use std::path::PathBuf;
 use std::time::Instant;
 use testkit::stability::{self, *};
 
+/// A job of the run: an index into `models()` and a cell.
+type Job = (usize, Cell);
+
 fn main() {
     let mut subset = false;
     let mut out = PathBuf::from("docs");
     let mut baseline: Option<PathBuf> = None;
     let mut csv_only = false;
     let mut only: Option<String> = None;
+    let mut keep_d: Option<Vec<f64>> = None;
+    let mut keep_h: Option<Vec<f64>> = None;
+    let list = |v: Option<String>, what: &str| -> Vec<f64> {
+        v.unwrap_or_else(|| panic!("{what} LIST"))
+            .split(',')
+            .map(|x| {
+                x.trim()
+                    .parse()
+                    .unwrap_or_else(|e| panic!("{what} {x}: {e}"))
+            })
+            .collect()
+    };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -34,6 +51,8 @@ fn main() {
             "--baseline" => baseline = Some(args.next().expect("--baseline CSV").into()),
             "--csv-only" => csv_only = true,
             "--model" => only = Some(args.next().expect("--model NAME")),
+            "--d" => keep_d = Some(list(args.next(), "--d")),
+            "--h" => keep_h = Some(list(args.next(), "--h")),
             other => {
                 eprintln!("unknown argument {other}");
                 std::process::exit(2);
@@ -42,18 +61,30 @@ fn main() {
     }
     let entries = models();
     let cells = if subset { ci_subset() } else { full_grid() };
-    let jobs: Vec<(usize, Cell)> = entries
+    let selected: Vec<Job> = entries
         .iter()
         .enumerate()
-        .filter(|(_, entry)| !subset || entry.in_ci_subset)
+        .filter(|(_, entry)| !subset || entry.in_ci_subset.is_some())
         .filter(|(_, entry)| only.as_deref().map_or(true, |m| m == entry.name))
         .flat_map(|(e, entry)| {
             cells
                 .iter()
                 .filter(|c| (entry.select)(c))
+                .filter(move |c| !subset || entry.in_ci_subset.is_some_and(|ci| ci(c)))
                 .map(move |c| (e, *c))
         })
         .collect();
+    // A reduced selection (`--d`, `--h`): the cells it leaves out are named
+    // in the page's header.
+    let kept = |values: &Option<Vec<f64>>, x: f64| values.as_ref().map_or(true, |v| v.contains(&x));
+    let (jobs, left_out): (Vec<Job>, Vec<Job>) = selected
+        .into_iter()
+        .partition(|(_, c)| kept(&keep_d, c.d_comp) && kept(&keep_h, c.h));
+    let reduced = Reduced {
+        d: keep_d.clone(),
+        h: keep_h.clone(),
+        left_out: left_out.len(),
+    };
     let threads = threads();
     eprintln!("stability: {} cells on {threads} threads", jobs.len());
     let started = Instant::now();
@@ -82,6 +113,7 @@ fn main() {
             threads,
             subset,
             only.as_deref(),
+            &reduced,
             &name,
             base.as_ref(),
         );
@@ -259,12 +291,64 @@ fn pct(n: usize, of: usize) -> String {
     }
 }
 
+/// A reduced selection of the command line: the values of D and h kept
+/// (`None`: all) and the number of cells of the model's selection left out.
+struct Reduced {
+    d: Option<Vec<f64>>,
+    h: Option<Vec<f64>>,
+    left_out: usize,
+}
+
+impl Reduced {
+    fn args(&self) -> Vec<String> {
+        let join = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:e}"))
+                .collect::<Vec<_>>()
+                .join(",")
+        };
+        let mut a = Vec::new();
+        if let Some(d) = &self.d {
+            a.push(format!("--d {}", join(d)));
+        }
+        if let Some(h) = &self.h {
+            a.push(format!("--h {}", join(h)));
+        }
+        a
+    }
+
+    /// The header's paragraph on the reduced selection (empty if none).
+    fn describe(&self, cells: usize) -> String {
+        if self.d.is_none() && self.h.is_none() {
+            return String::new();
+        }
+        let set = |v: &Option<Vec<f64>>, all: &[f64]| {
+            v.as_deref()
+                .unwrap_or(all)
+                .iter()
+                .map(|x| format!("{x:e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        format!(
+            "**A reduced selection:** only the cells with D ∈ {{{}}} 1/Pa and h ∈ {{{}}} s of the \
+             model's part of the grid were run ({cells} cells); the other {} cells of that part were not \
+             run, so this page says nothing about them. Rerun without `--d`/`--h` for the full selection.\n\n",
+            set(&self.d, &D_VALUES),
+            set(&self.h, &H_VALUES),
+            self.left_out
+        )
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
 fn report(
     results: &[CellResult],
     wall: f64,
     threads: usize,
     subset: bool,
     only: Option<&str>,
+    reduced: &Reduced,
     name: &str,
     baseline: Option<&(PathBuf, Vec<Row>)>,
 ) -> String {
@@ -276,6 +360,7 @@ fn report(
     if let Some(m) = only {
         args.push(format!("--model {m}"));
     }
+    args.extend(reduced.args());
     if let Some((p, _)) = baseline {
         args.push(format!("--baseline {}", p.display()));
     }
@@ -302,6 +387,7 @@ fn report(
         results.len(),
         threads,
     );
+    s.push_str(&reduced.describe(results.len()));
     let _ = writeln!(
         s,
         "Models: {}. The harness is `testkit::stability` (shared with the CI subset, \
@@ -346,7 +432,9 @@ fn report(
          the PE, stress − active_stress·fibre_stretch/stretch = [2 U_I' (λ̄f² − 1/λ̄f) + λ̄f σ_p]/λ, ≥ 0 in fibre \
          tension and ≤ 0 in compression (relative 1e-9). Agreement: at every communication point \
          |x − x_ref| ≤ {AGREEMENT_TOL}·max(sigma0, |x_ref|) for x = stress and active_stress (2 % of the \
-         maximum isometric stress, or of the stress where that is larger).\n\n\
+         maximum isometric stress, or of the stress where that is larger); for a musculotendon unit x = force \
+         (relative to F0 = sigma0·area instead of sigma0) and stress, reported in the columns of stress and \
+         active_stress.\n\n\
          Each cell is bounded in time: {}s for both runs (checked between steps; past it the cell is a \
          `timeout`), and a watchdog ends the whole run, naming the cell, if one FMI call does not return \
          within {}s.\n",
@@ -510,7 +598,7 @@ fn report(
             entry.name,
             compared.len()
         );
-        if entry.time_error_controlled && entry.in_ci_subset {
+        if entry.time_error_controlled && entry.in_ci_subset.is_some() {
             let _ = writeln!(
                 s,
                 " (its time error is controlled; the CI subset asserts agreement);"

@@ -60,6 +60,8 @@ use hill_muscle::fmus::hill1d::Hill1D;
 #[cfg(feature = "fe")]
 use hill_muscle::fmus::hillfe::HillFE;
 use hill_muscle::fmus::musculotendon1d::Musculotendon;
+#[cfg(feature = "fe")]
+use hill_muscle::fmus::musculotendonfe::MusculotendonFe;
 use hill_muscle::law::{ParamId, Params};
 
 use crate::logger::{callbacks, LogBook};

@@ -70,8 +70,10 @@ pub struct ModelEntry {
     pub run: fn(&Cell, &Watch) -> CellResult,
     /// The cells of the full matrix this model runs.
     pub select: fn(&Cell) -> bool,
-    /// Whether the CI subset (`tests/stability_subset.rs`) runs this model.
-    pub in_ci_subset: bool,
+    /// The cells of the CI subset (`tests/stability_subset.rs`, `--subset`)
+    /// this model runs, among those `select` keeps: `None`, none; `Some(f)`,
+    /// those `f` keeps.
+    pub in_ci_subset: Option<fn(&Cell) -> bool>,
     /// Whether the CI subset also requires agreement with the run at h/100
     /// (beyond the issue's acceptance criteria): for a model that controls
     /// its time error. Otherwise the deviations are reported, not asserted.
@@ -86,7 +88,7 @@ pub fn models() -> Vec<ModelEntry> {
             name: "HillMuscle1D",
             run: |c, w| run_cell::<Hill1D>(c, w, &HILL1D_HOOKS),
             select: |_| true,
-            in_ci_subset: true,
+            in_ci_subset: Some(|_| true),
             // Error-controlled substeps of the CE–SEE update (issue 4 §2).
             time_error_controlled: true,
         },
@@ -94,7 +96,7 @@ pub fn models() -> Vec<ModelEntry> {
             name: "HillMusculotendon1D",
             run: |c, w| run_cell::<Musculotendon>(c, w, &MUSCULOTENDON1D_HOOKS),
             select: |_| true,
-            in_ci_subset: true,
+            in_ci_subset: Some(|_| true),
             // The 1D muscle's error-controlled substeps, the tendon's
             // equilibrium solved at the end of each.
             time_error_controlled: true,
@@ -108,7 +110,7 @@ pub fn models() -> Vec<ModelEntry> {
             // Its 11 cells of the CI subset meet the acceptance criteria
             // (about 20 s); the full matrix's report lists the cells it
             // fails (docs/stability.md).
-            in_ci_subset: true,
+            in_ci_subset: Some(|_| true),
             // One backward-Euler step of the CE–SEE update per
             // communication step (substeps only when Newton does not
             // converge, whose directional derivatives are those of the last
@@ -128,8 +130,30 @@ pub fn models() -> Vec<ModelEntry> {
             // 1e-3 s only the 40-step act-toggle program has one): where
             // the comparison shows what the control changes.
             select: |c| fe_cell(c) && c.h >= 1e-2,
-            in_ci_subset: false,
+            in_ci_subset: None,
             time_error_controlled: true,
+        },
+        #[cfg(feature = "fe")]
+        ModelEntry {
+            name: "HillMusculotendonFE",
+            run: |c, w| run_cell::<MusculotendonFe>(c, w, &MUSCULOTENDONFE_HOOKS),
+            // The FE muscle's part of the grid, for the same reason.
+            select: fe_cell,
+            // Two of its 11 cells of the CI subset, one at each corner of
+            // (alpha, S), both at h = 0.1 s (a few steps, the reference run
+            // affordable): an activation jump at the optimum with D = 1e-12
+            // and active ramps at 10·|lambda_dot_min| (a stretch change in
+            // one step). The full selection is `--model HillMusculotendonFE`.
+            in_ci_subset: Some(|c| {
+                c.h == 0.1
+                    && ((c.scenario == Scenario::ActivationJumps { stretch: 1.05 }
+                        && c.d_comp == 1e-12)
+                        || (c.scenario == Scenario::ActiveRamps { rate: 10.0 } && c.d_comp == 1e-9))
+            }),
+            // The FE muscle's one backward-Euler step of the CE–SEE update
+            // per communication step (its default), the tendon's
+            // equilibrium solved at its end: no time-error control.
+            time_error_controlled: false,
         },
     ]
 }
@@ -172,6 +196,27 @@ pub(crate) const HILLFE_HOOKS: Hooks<HillFE> = Hooks {
 pub(crate) const HILLFE_ADAPTIVE_HOOKS: Hooks<HillFE> = Hooks {
     booleans: &[("adaptive_substeps", true)],
     ..HILLFE_HOOKS
+};
+
+/// The FE musculotendon unit in the matrix: [`MUSCULOTENDON1D_HOOKS`]'s
+/// tendon (slack length 4 cm, the scene's strain at F0) in series with the
+/// FE muscle on [`HILLFE_HOOKS`]'s 6 × 1 mesh and reference budget, its FE
+/// Newton iterations (linear solves) per step, and [`unit_bounds`]. Its
+/// muscle keeps the scene's area (F0 = 624 N at Table 2's sigma0) at the
+/// matrix's L0 = 0.05 m: a squatter specimen than `HillMuscleFE`'s default.
+#[cfg(feature = "fe")]
+pub(crate) const MUSCULOTENDONFE_HOOKS: Hooks<MusculotendonFe> = Hooks {
+    stats: Some(|m: &MusculotendonFe| StepStats {
+        substeps: None,
+        iterations: Some(u32::try_from(m.last_step_work().0).unwrap_or(u32::MAX)),
+        ce_iterations: None,
+    }),
+    bounds: unit_bounds,
+    integers: HILLFE_HOOKS.integers,
+    booleans: &[],
+    fine_budget: HILLFE_HOOKS.fine_budget,
+    tendon_slack_length: MUSCULOTENDON1D_HOOKS.tendon_slack_length,
+    compared: MUSCULOTENDON1D_HOOKS.compared,
 };
 
 pub(crate) const HILL1D_HOOKS: Hooks<Hill1D> = Hooks {
