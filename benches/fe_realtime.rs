@@ -292,6 +292,19 @@ fn arm_in_process() {
         step_median * 1e3,
         mean(&|w| w.derivative) * 1e3,
     );
+    let with = |lo: usize, hi: usize| {
+        work.iter()
+            .filter(|w| (lo..=hi).contains(&w.factorizations))
+            .count()
+    };
+    println!(
+        "Steps by their factorisations: none {}, one {}, two {}, three to five {}, more {}",
+        with(0, 0),
+        with(1, 1),
+        with(2, 2),
+        with(3, 5),
+        with(6, usize::MAX)
+    );
     let mut order: Vec<usize> = (0..work.len()).collect();
     order.sort_by(|&a, &b| step[b].total_cmp(&step[a]));
     println!();
