@@ -19,21 +19,35 @@
 //!   `initial_activation` 1 and the activation command 1 (the static
 //!   equilibrium at level 1 at L0), per run;
 //! - `large-steps`: the two stepping workloads at h = 1, 10 and 100 ms: wall
-//!   time per simulated second (it should fall as h grows).
+//!   time per simulated second (it should fall as h grows);
+//! - `arm`: the coupled arm's calls (`examples/arm_mujoco.py --model fe
+//!   --scheme implicit`, H = 10 ms, 100 steps: fmi2SetReal,
+//!   fmi2SetRealInputDerivatives, fmi2DoStep, fmi2GetReal,
+//!   fmi2GetDirectionalDerivative), replayed from the committed trace
+//!   `benches/data/arm_fe_implicit.csv` ([`arm`]).
 //!
 //! A last table counts the work of the stepping workloads in-process (the
 //! FMU's step map on the same mesh, activation dynamics on, no substep
 //! control, as the FMU's defaults): linear solves, residual evaluations,
 //! tangent factorisations and substeps per step. The counts are
-//! deterministic; they say what the times are made of.
+//! deterministic; they say what the times are made of. It also runs the two
+//! other work-precision scenes (docs/work-precision.md) at h = 1, 10, 100 ms:
+//! `activated` (command 1 from t = 0, held at L0 for 0.5 s, then pulled at
+//! 5 mm/s to 20 % strain, 2.5 s) and `fast` (command 1 on [0.10, 0.15) s,
+//! L = L0 (1 + 0.05 sin(2π 5 t)), 0.6 s), and the arm's trace (each step's
+//! work and the time of its d force / d length).
 //!
 //! `--runs N` (default 3) repeats each row and reports the median of the runs'
 //! figures; `--only NAME` runs one workload once (for `perf record`);
 //! `--in-process` prints only the in-process table (no FMU needed), with the
-//! mean and median wall time of the step map's steps and the force in full.
+//! mean and median wall time of the step map's steps and the force in full
+//! (with `--only NAME`, of that workload alone).
 
 use std::ffi::c_uint;
 use std::time::Instant;
+
+#[path = "fe_realtime/arm.rs"]
+mod arm;
 
 use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::muscle::Muscle;
@@ -52,20 +66,45 @@ use testkit::cabi;
 /// The passive pull's speed [m/s].
 const SPEED: f64 = 0.005;
 
-/// A workload's inputs (activation command, length) at time t.
-type Inputs = fn(f64) -> (f64, f64);
+/// A workload's inputs over the step [t0, t]: the activation command and
+/// the length at its end.
+type Inputs = fn(f64, f64) -> (f64, f64);
 
-fn passive(t: f64) -> (f64, f64) {
+fn passive(_t0: f64, t: f64) -> (f64, f64) {
     (0.0, L0 + SPEED * t)
 }
 
-fn stretch_release(t: f64) -> (f64, f64) {
+fn stretch_release(_t0: f64, t: f64) -> (f64, f64) {
     let u = if t >= 0.2 { 1.0 } else { 0.0 };
     let up = t.min(2.0 - t).clamp(0.0, 1.0);
     (u, L0 * (1.0 + 0.1 * up))
 }
 
-fn vr_of(name: &str) -> c_uint {
+/// Switch times within this of a communication point count as on it
+/// (examples/scenes.py).
+const SWITCH: f64 = 1e-9;
+
+/// Work-precision scene `activated` (examples/scenes.py): command 1, held
+/// at L0 until 0.5 s, then pulled at 5 mm/s.
+fn activated(_t0: f64, t: f64) -> (f64, f64) {
+    (1.0, L0 + SPEED * (t - 0.5).max(0.0))
+}
+
+/// Work-precision scene `fast` (examples/scenes.py): the command of the
+/// step's start (1 on [0.10, 0.15) s), L = L0 (1 + 0.05 sin(2π 5 t)).
+fn fast(t0: f64, t: f64) -> (f64, f64) {
+    let u = if (0.10 - SWITCH..0.15 - SWITCH).contains(&t0) {
+        1.0
+    } else {
+        0.0
+    };
+    (
+        u,
+        L0 * (1.0 + 0.05 * (2.0 * std::f64::consts::PI * 5.0 * t).sin()),
+    )
+}
+
+pub(crate) fn vr_of(name: &str) -> c_uint {
     HillFE::variables()
         .iter()
         .position(|v| v.name == name)
@@ -83,7 +122,7 @@ fn run(api: &cabi::Api, inputs: Inputs, h: f64, duration: f64) -> (Vec<f64>, Vec
     let (mut times, mut solves) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     let mut force = [0.0];
     for i in 0..steps {
-        let (u, l) = inputs((i + 1) as f64 * h);
+        let (u, l) = inputs(i as f64 * h, (i + 1) as f64 * h);
         let t = Instant::now();
         instance.step(&ins, &[u, l], i as f64 * h, h, &outs, &mut force);
         times.push(t.elapsed().as_secs_f64());
@@ -141,7 +180,7 @@ fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64, Vec<StepWork
     let (mut sum, mut a0, mut force) = ([0usize; 4], 0.0, f64::NAN);
     let mut times = Vec::with_capacity(steps);
     for i in 0..steps {
-        let (u, l) = inputs((i + 1) as f64 * h);
+        let (u, l) = inputs(i as f64 * h, (i + 1) as f64 * h);
         let level = StepLevel::new(true, p.s, a0, u, 0.0, h, (-p.s * h).exp());
         let t = Instant::now();
         let adv = m
@@ -163,23 +202,29 @@ fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64, Vec<StepWork
     (sum.map(|c| c as f64 / steps as f64), force, times)
 }
 
-/// The in-process table: the work per step and its wall time.
-fn in_process() {
+/// The in-process tables (of the workload `only` alone when given): the
+/// work per step and its wall time.
+fn in_process(only: Option<&str>) {
+    let wanted = |name: &str| only.map_or(true, |o| o == name);
     println!("Work per step in-process (the FMU's step map, its defaults)");
-    println!("| workload | h (ms) | solves/step | residuals/step | factorisations/step | substeps/step | mean ms/step | median ms/step | force at the end (N) |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| workload | h (ms) | solves/step | residuals/step | factorisations/step | substeps/step | mean ms/step | median ms/step | wall s per simulated s | force at the end (N) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut kinds = Vec::new();
-    for (name, inputs, duration) in STEPPING {
+    for (name, inputs, duration) in STEPPING.into_iter().chain(SCENES) {
+        if !wanted(name) {
+            continue;
+        }
         for h in [1e-3, 1e-2, 1e-1] {
             let ([solves, residuals, factorizations, substeps], force, steps) =
                 counts(inputs, h, duration);
             let times: Vec<f64> = steps.iter().map(|s| s.0).collect();
             let [mean, med, ..] = stats(&times, &[0]);
             println!(
-                "| {name} | {} | {solves:.3} | {residuals:.3} | {factorizations:.3} | {substeps:.3} | {:.3} | {:.3} | {force:.14} |",
+                "| {name} | {} | {solves:.3} | {residuals:.3} | {factorizations:.3} | {substeps:.3} | {:.3} | {:.3} | {:.3} | {force:.14} |",
                 h * 1e3,
                 mean * 1e3,
-                med * 1e3
+                med * 1e3,
+                times.iter().sum::<f64>() / duration
             );
             if h == 1e-3 {
                 kinds.push((name, steps));
@@ -214,11 +259,114 @@ fn in_process() {
             class(&|_, f| f > 0)
         );
     }
+    if wanted("arm") {
+        println!();
+        arm_in_process();
+    }
+}
+
+/// The arm's trace in-process: the work of its steps and of their
+/// d force / d length, and its most expensive steps.
+fn arm_in_process() {
+    let trace = arm::load();
+    let (work, force, stiffness) = arm::in_process(&trace);
+    let n = work.len() as f64;
+    let mean = |f: &dyn Fn(&arm::Work) -> f64| work.iter().map(f).sum::<f64>() / n;
+    let step: Vec<f64> = work.iter().map(|w| w.step + w.derivative).collect();
+    let [step_mean, step_median, ..] = stats(&step, &[0]);
+    println!(
+        "The coupled arm's trace in-process ({} steps of {} ms)",
+        work.len(),
+        trace.h * 1e3
+    );
+    println!("| solves/step | residuals/step | factorisations/step | substeps/step | steps in substeps | mean ms/step (step + derivative) | median ms/step | derivative mean ms | force at the end (N) | d force / d length at the end (N/m) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {:.3} | {:.3} | {:.3} | {:.3} | {} | {:.3} | {:.3} | {:.3} | {force:.14} | {stiffness:.10} |",
+        mean(&|w| w.solves as f64),
+        mean(&|w| w.residuals as f64),
+        mean(&|w| w.factorizations as f64),
+        mean(&|w| w.substeps as f64),
+        work.iter().filter(|w| w.substeps > 1).count(),
+        step_mean * 1e3,
+        step_median * 1e3,
+        mean(&|w| w.derivative) * 1e3,
+    );
+    let with = |lo: usize, hi: usize| {
+        work.iter()
+            .filter(|w| (lo..=hi).contains(&w.factorizations))
+            .count()
+    };
+    println!(
+        "Steps by their factorisations: none {}, one {}, two {}, three to five {}, more {}",
+        with(0, 0),
+        with(1, 1),
+        with(2, 2),
+        with(3, 5),
+        with(6, usize::MAX)
+    );
+    let mut order: Vec<usize> = (0..work.len()).collect();
+    order.sort_by(|&a, &b| step[b].total_cmp(&step[a]));
+    println!();
+    println!("Its most expensive steps");
+    println!("| t (s) | command | length (m) | dL/dt (m/s) | solves | factorisations | substeps | step ms | derivative ms |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for &i in order.iter().take(8) {
+        let (r, w) = (&trace.rows[i], &work[i]);
+        println!(
+            "| {:.2} | {:.3} | {:.5} | {:.4} | {} | {} | {} | {:.2} | {:.2} |",
+            r.t,
+            r.activation,
+            r.length,
+            r.der_length,
+            w.solves,
+            w.factorizations,
+            w.substeps,
+            w.step * 1e3,
+            w.derivative * 1e3
+        );
+    }
+}
+
+/// The arm's trace through the C ABI, `runs` times: its table row.
+fn arm_cabi(api: &cabi::Api, runs: usize) {
+    let trace = arm::load();
+    let replays: Vec<arm::Replayed> = (0..runs).map(|_| arm::cabi(api, &trace)).collect();
+    let m = |f: &dyn Fn(&arm::Replayed) -> f64| median(replays.iter().map(f).collect());
+    let st = |r: &arm::Replayed| stats(&r.times, &r.solves);
+    let last = replays.last().expect("a run");
+    println!(
+        "The coupled arm's calls replayed ({} steps of {} ms, median of {runs} runs)",
+        trace.rows.len(),
+        trace.h * 1e3
+    );
+    println!("| mean ms/step | median ms/step | p90 ms/step | max ms/step | of which fmi2GetDirectionalDerivative, mean ms | solves/step | wall s per simulated s | force at the end (N) | d force / d length at the end (N/m) | largest force − recorded (N) | largest relative K − recorded |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {:.3} | {:.3} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {:.6} | {:.3} | {:.2e} | {:.2e} |",
+        m(&|r| st(r)[0]) * 1e3,
+        m(&|r| st(r)[1]) * 1e3,
+        m(&|r| st(r)[2]) * 1e3,
+        m(&|r| st(r)[3]) * 1e3,
+        m(&|r| r.derivative.iter().sum::<f64>() / r.derivative.len() as f64) * 1e3,
+        st(last)[4],
+        m(&|r| r.times.iter().sum::<f64>()) / (trace.h * trace.rows.len() as f64),
+        last.force,
+        last.stiffness,
+        last.force_deviation,
+        last.stiffness_deviation,
+    );
 }
 
 const STEPPING: [(&str, Inputs, f64); 2] = [
     ("passive", passive as Inputs, 2.0),
     ("stretch-release", stretch_release as Inputs, 2.0),
+];
+
+/// The other work-precision scenes (in-process only).
+const SCENES: [(&str, Inputs, f64); 2] = [
+    ("activated", activated as Inputs, 2.5),
+    ("fast", fast as Inputs, 0.6),
 ];
 
 fn main() {
@@ -230,7 +378,7 @@ fn main() {
     };
     let runs: usize = value("--runs").map_or(3, |v| v.parse().expect("--runs N"));
     if args.iter().any(|a| a == "--in-process") {
-        in_process();
+        in_process(value("--only").as_deref());
         return;
     }
     let api = load("HillMuscleFE");
@@ -240,10 +388,14 @@ fn main() {
             println!("init: {:.3} s", init(&api));
             return;
         }
+        if only == "arm" {
+            arm_cabi(&api, 1);
+            return;
+        }
         let (_, inputs, duration) = STEPPING
             .iter()
             .find(|w| w.0 == only)
-            .unwrap_or_else(|| panic!("--only passive | stretch-release | init"));
+            .unwrap_or_else(|| panic!("--only passive | stretch-release | init | arm"));
         let (t, s, f) = run(&api, *inputs, 1e-3, *duration);
         let [mean, med, ..] = stats(&t, &s);
         println!(
@@ -281,7 +433,9 @@ fn main() {
         }
     }
     println!();
-    in_process();
+    arm_cabi(&api, runs);
+    println!();
+    in_process(None);
     let t: Vec<f64> = (0..runs).map(|_| init(&api)).collect();
     println!();
     println!(

@@ -122,6 +122,20 @@ canInterpolateInputs the master sets the extrapolated length instead of
 the derivative. When the FE FMU is absent the script says so and falls
 back to HillMuscle1D at the same communication step.
 
+The FMU's call trace (``--trace FILE``)
+--------------------------------------
+``--trace FILE`` (implicit scheme) writes what the master gave the FMU and got
+back, one line per communication step, as CSV (``write_trace``): the header
+comments name the parameters (``L0``, ``area``, mesh), the initial length and
+activation and H; each row holds t, the length L(t), its derivative dL/dt,
+the activation command u, the force after the step and d force / d length.
+Per row the master called fmi2SetReal(length, activation = L, u),
+fmi2SetRealInputDerivatives(length, order 1, dL/dt), fmi2DoStep(t, H),
+fmi2GetReal(force), fmi2GetDirectionalDerivative(force; length; 1) and
+fmi2GetReal(force, activation_level, fibre_stretch). The benchmark
+``benches/fe_realtime.rs`` replays the committed trace of the default run
+(``benches/data/arm_fe_implicit.csv``) open loop through the C ABI.
+
 The antagonist pair (``--pair``)
 --------------------------------
 ``--pair`` runs a second model on the same elbow: a flexor (biceps long
@@ -139,6 +153,7 @@ Usage::
     python examples/arm_mujoco.py --sweep --experiment hold --t-end 2.0   # stability limits, error vs wall time
     python examples/arm_mujoco.py --model fe           # HillMuscleFE, implicit, H = 10 ms
     python examples/arm_mujoco.py --model fe --scheme all --mesh n_axial=6 --mesh n_radial=1
+    python examples/arm_mujoco.py --model fe --trace benches/data/arm_fe_implicit.csv   # record the FMU calls
     python examples/arm_mujoco.py --pair               # the antagonist pair: all schemes + comparison, H = 1 ms
     python examples/arm_mujoco.py --pair --sweep --steps-ms 1,4,16,32,64   # the pair's stability limits
 """
@@ -348,7 +363,7 @@ def _kinetic(model, data):
 
 def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, angle0=0.0,
              controller=None, tol=1e-9, max_iter=20, record_stiffness=False, params=None, slack=0.0, qvel0=0.0,
-             mesh=None, input_derivatives=None):
+             mesh=None, input_derivatives=None, trace=None):
     """One coupled run; returns a ``Result`` sampled at the communication points.
 
     ``params`` overrides the FMU parameters (default ``MUSCLE_PARAMS``);
@@ -363,7 +378,10 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
     ``extra["stiffness"]`` holds the K of the implicit scheme (or, with
     ``record_stiffness``, of any scheme).
     ``extra`` holds the time spent in ``doStep`` (``fmu_wall``) and the
-    number of ``doStep`` calls (``fmu_steps``)."""
+    number of ``doStep`` calls (``fmu_steps``).
+    ``trace`` (a list, implicit scheme with input derivatives): each
+    communication step's (t, L, dL/dt, u, force, d force / d length) is
+    appended to it (``write_trace``)."""
     import mujoco
 
     if scheme not in SCHEMES:
@@ -460,6 +478,8 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
                 else:
                     K = slave.getDirectionalDerivative([vr_force], [vr_len], [1.0])[0]
                     rec["stiffness"][i + 1] = K
+                    if trace is not None:
+                        trace.append((t, L, dL, u, F, K))
                     for j in range(n_sub):
                         # deviation of the length at the end of this MuJoCo step (predicted
                         # with the current velocity) from the FMU's straight path L + tau dL
@@ -520,6 +540,29 @@ def simulate(scheme="implicit", H=1e-3, t_end=1.0, dt=1e-3, fmu=DEFAULT_FMU, ang
                   wall=wall, iterations=iters_total / max(1, n_done - 1) if scheme == "iterated" else 1.0,
                   stable=stable, reason=reason, extra={"stiffness": rec["stiffness"], "unconverged_steps": unconverged,
                                                        "fmu_wall": fmu_wall, "fmu_steps": fmu_steps})
+
+
+TRACE_COLUMNS = ("t", "length", "der_length", "activation", "force", "dforce_dlength")
+"""The columns of a call trace (module docstring, ``--trace``)."""
+
+
+def write_trace(path, rows, params, mesh, length0, H):
+    """Write the call trace ``rows`` of ``simulate(..., trace=rows)`` as CSV
+    (module docstring, ``--trace``): header comments with the FMU's Real
+    and Integer parameters, the initial inputs and H, then one row per
+    communication step at full precision."""
+    lines = ["# HillMuscleFE calls of examples/arm_mujoco.py, implicit scheme (module docstring, --trace)",
+             "# per row: fmi2SetReal(length, activation), fmi2SetRealInputDerivatives(length, 1, der_length),",
+             "# fmi2DoStep(t, H), fmi2GetReal(force), fmi2GetDirectionalDerivative(force; length; 1),",
+             "# fmi2GetReal(force, activation_level, fibre_stretch)",
+             f"# H = {H!r}",
+             f"# initial length = {float(length0)!r}",
+             "# initial activation = 0.0"]
+    lines += [f"# parameter {k} = {float(v)!r}" for k, v in params.items()]
+    lines += [f"# integer {k} = {int(v)}" for k, v in (mesh or {}).items()]
+    lines.append(",".join(TRACE_COLUMNS))
+    lines += [",".join(repr(float(x)) for x in row) for row in rows]
+    Path(path).write_text("\n".join(lines) + "\n")
 
 
 def _flag(rec, i, H, f_max):
@@ -823,6 +866,8 @@ def main(argv=None):
     p.add_argument("--steps-ms", default=None, help="--sweep: comma-separated communication steps [ms]")
     p.add_argument("--sweep", action="store_true", help="stability limits and error vs wall time")
     p.add_argument("--out", default=str(REPO / "docs" / "figures"))
+    p.add_argument("--trace", default=None, metavar="FILE",
+                   help="implicit scheme: write the FMU's call trace as CSV (module docstring)")
     p.add_argument("--pair", action="store_true",
                    help="the antagonist musculotendon pair (arm_pair.py); --fmu: the musculotendon FMU")
     args = p.parse_args(argv)
@@ -867,6 +912,9 @@ def main(argv=None):
               out=out / f"arm_{args.experiment}{tag}_work_precision.png")
         return 0
     schemes = SCHEMES if scheme == "all" else (scheme,)
+    if args.trace and schemes != ("implicit",):
+        p.error("--trace records the implicit scheme: use it with --scheme implicit")
+    trace = [] if args.trace else None
     results = []
     for s in schemes:
         why = unsupported(fmu, s)
@@ -875,7 +923,7 @@ def main(argv=None):
             continue
         try:
             r = run(args.experiment, s, step, t_end=args.t_end, fmu=fmu, mesh=mesh,
-                    overrides=dict(args.param) or None)
+                    overrides=dict(args.param) or None, trace=trace)
         except ValueError as exc:
             p.error(str(exc))
         results.append(r)
@@ -892,6 +940,11 @@ def main(argv=None):
     if not results:
         print("no scheme could run with this FMU", file=sys.stderr)
         return 1
+    if trace is not None:
+        params = {**MUSCLE_PARAMS, **experiment_kwargs(args.experiment).get("params", {}), **dict(args.param)}
+        length0 = results[0].length[0]
+        write_trace(args.trace, trace, params, mesh, length0, step)
+        print(f"wrote {args.trace} ({len(trace)} steps)")
     tag = "" if model == "1d" else "_fe"
     fname = f"arm{tag}_{args.experiment}_{scheme}_H{1e3 * step:g}ms.png"
     plot_runs(results, out / fname, f"{name} on a MuJoCo elbow ({args.experiment}), H = {1e3 * step:g} ms")

@@ -71,6 +71,19 @@
 //! from the linearised response comes first (its pressures the linearised
 //! problem's), the displacement iteration is the fallback.
 //!
+//! # Stalls
+//!
+//! Newton's method with a tangent formed at every iterate, started outside
+//! its region of convergence (an activation jump inside a step, a large
+//! length change against the predictor), can creep: each line search
+//! accepts α ≈ 1/32 with θ ≈ 0.99, and the attempt spends all of its
+//! [`MAX_NEWTON_ITERATIONS`] iterations, one factorisation each, before the
+//! fallbacks (the linearised start, damped Newton, continuation) that reach
+//! the equilibrium in a few. [`STALL_ITERATIONS`] fresh-tangent iterations
+//! in a row with STALL_CONTRACTION < θ ≤ 1 end the attempt early. The
+//! equilibrium a step converges to is the same to the tolerance; only the
+//! path to it changes, and only on steps that stall.
+//!
 //! [`CONTRACTION_STEPS`]: crate::fe::tangent::CONTRACTION_STEPS
 
 use std::sync::Arc;
@@ -100,6 +113,14 @@ const MIN_LINE_SEARCH: f64 = 1.0 / 256.0;
 /// A step that has taken this many iterations with a reused tangent forms it
 /// afresh.
 pub const REFRESH_ITERATIONS: usize = 4;
+/// An iteration with a tangent formed at its iterate that contracts the
+/// correction by no more than this (STALL_CONTRACTION < θ ≤ 1: a line search
+/// cut to a small α, or a residual barely decreasing) makes no progress
+/// toward Newton's region of convergence.
+pub const STALL_CONTRACTION: f64 = 0.9;
+/// After this many such iterations in a row the attempt is given up for the
+/// next fallback (module docs, "Stalls").
+pub const STALL_ITERATIONS: usize = 3;
 
 /// A converged equilibrium.
 #[derive(Clone, Debug)]
@@ -470,6 +491,9 @@ impl Discretization {
         let mut reused = 0;
         let mut refresh = false;
         let mut iterations = 0;
+        // Fresh-tangent iterations in a row that made no progress (module
+        // docs, "Stalls").
+        let mut stalled = 0;
         // The contraction of `cache`'s tangent over a step: measured at
         // the first trial of a step with the tangent it came with (later
         // trials measure Newton's contraction near the solution, not the
@@ -590,6 +614,18 @@ impl Discretization {
                         for ((pi, q), c) in pressure.iter_mut().zip(&predicted).zip(&current) {
                             *pi = q + (1.0 - alpha) * (*pi - c);
                         }
+                    }
+                    stalled = if fresh && th > STALL_CONTRACTION && th <= 1.0 {
+                        stalled + 1
+                    } else {
+                        0
+                    };
+                    if stalled == STALL_ITERATIONS {
+                        return Err(format!(
+                            "Newton stalls: {STALL_ITERATIONS} iterations in a row contract the correction by no more than {STALL_CONTRACTION} (correction {:e} m, residual {:e} N)",
+                            max_abs(&next),
+                            self.residual_norm(&e.forces)
+                        ));
                     }
                     x = trial;
                     ev = e;

@@ -37,6 +37,17 @@ type GetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut f64)
 type SetBoolean = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const c_int) -> c_int;
 type GetInteger = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut c_int) -> c_int;
 type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, c_int) -> c_int;
+type SetRealInputDerivatives =
+    unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const c_int, *const f64) -> c_int;
+type GetDirectionalDerivative = unsafe extern "C" fn(
+    *mut c_void,
+    *const c_uint,
+    usize,
+    *const c_uint,
+    usize,
+    *const f64,
+    *mut f64,
+) -> c_int;
 
 /// The functions a co-simulation loop calls.
 pub struct Api {
@@ -51,6 +62,8 @@ pub struct Api {
     pub set_boolean: SetBoolean,
     pub get_integer: GetInteger,
     pub do_step: DoStep,
+    pub set_real_input_derivatives: SetRealInputDerivatives,
+    pub get_directional_derivative: GetDirectionalDerivative,
 }
 
 unsafe fn sym<T: Copy>(lib: *mut c_void, name: &str) -> T {
@@ -108,6 +121,8 @@ pub fn load(id: &str) -> Api {
             set_boolean: sym(lib, "fmi2SetBoolean"),
             get_integer: sym(lib, "fmi2GetInteger"),
             do_step: sym(lib, "fmi2DoStep"),
+            set_real_input_derivatives: sym(lib, "fmi2SetRealInputDerivatives"),
+            get_directional_derivative: sym(lib, "fmi2GetDirectionalDerivative"),
         }
     }
 }
