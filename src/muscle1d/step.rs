@@ -80,6 +80,31 @@ pub fn piece_error(
     backward_euler_error(p, cap, start_rate, rate, hs)
 }
 
+/// The tolerance [`MAX_CONTROLLED_TRIES`] is sized for (the FMUs' default
+/// `substep_tolerance`, relative to sigma0).
+const BOUND_TOLERANCE: f64 = 1e-3;
+
+/// Largest factor by which a tighter tolerance raises the work bound (reached
+/// at a tolerance of about 1e-6).
+const MAX_BOUND_FACTOR: f64 = 32.0;
+
+/// The work bound of one step at relative tolerance `rtol`: the number of
+/// tries after which the rest of the step is one piece. Backward Euler's
+/// local error is second order in the piece length, so the pieces a
+/// trajectory needs grow as rtol^(−1/2): [`MAX_CONTROLLED_TRIES`] at
+/// [`BOUND_TOLERANCE`] and above, scaled by (BOUND_TOLERANCE/rtol)^(1/2) below
+/// it (at most [`MAX_BOUND_FACTOR`] times), so that a tighter tolerance
+/// keeps the bound as far above the need as the default does instead of
+/// leaving the step's rest uncontrolled.
+pub(crate) fn max_tries(rtol: f64) -> u32 {
+    let factor = (BOUND_TOLERANCE / rtol).sqrt();
+    if factor > 1.0 {
+        (f64::from(MAX_CONTROLLED_TRIES) * factor.min(MAX_BOUND_FACTOR)) as u32
+    } else {
+        MAX_CONTROLLED_TRIES
+    }
+}
+
 /// How many halvings bring a piece within `factor` (< 1) of its length:
 /// the smallest n with 2^(−n) ≤ factor (a reduction placed on the dyadic
 /// grid).
@@ -229,7 +254,8 @@ impl<C: Components> Muscle1D<C> {
     /// h/2^k that fit the dyadic grid of the step, so that the substeps tile the step exactly and are piecewise
     /// constant in the inputs (the step map is then smooth between switches
     /// of the pattern, and its partial derivatives — chained through the
-    /// substeps — are those of the map). After [`MAX_CONTROLLED_TRIES`] tries the rest
+    /// substeps — are those of the map). After [`max_tries`] tries (the work bound,
+    /// [`MAX_CONTROLLED_TRIES`] at the default tolerance) the rest
     /// of the step is taken in one piece (backward Euler is stable for any
     /// length: the result stays bounded, only less accurate). `a_end` is the
     /// level at the end of the step. Changes nothing (the caller commits).
@@ -292,9 +318,10 @@ impl<C: Components> Muscle1D<C> {
         // The piece is h / 2^level long.
         let mut level = 0u32;
         let mut tries = 0u32;
+        let bound = max_tries(self.substep_tolerance);
         loop {
             tries += 1;
-            let forced = tries >= MAX_CONTROLLED_TRIES;
+            let forced = tries >= bound;
             let end = if forced {
                 WHOLE
             } else {

@@ -453,3 +453,59 @@ fn a_tiny_step_commits_a_finite_guess() {
         "no tiny step completed: the case is not exercised"
     );
 }
+
+/// A tighter tolerance raises the work bound of a step. The stability
+/// matrix's cell joint-jumps paper-max (D = 1e-4, alpha = 1000, S = 1e5,
+/// h = 0.1 s) at `substep_tolerance` 2e-5: after the path and the command
+/// jump together, the stiff SEE against the tendon takes pieces of a few
+/// µs for tens of ms. With the work bound fixed at 10,000 tries the first
+/// step ran out of tries and took its rest in one piece: its force was
+/// 0.094 F0 from the run at h/100. Now within 1e-3 F0 at both points. At
+/// the default tolerance and above the bound is unchanged.
+#[test]
+fn a_tight_tolerance_keeps_a_long_stiff_step_controlled() {
+    use crate::law::ParamId;
+    use crate::muscle1d::step::max_tries;
+    use crate::step_control::MAX_CONTROLLED_TRIES;
+    assert_eq!(max_tries(1e-3), MAX_CONTROLLED_TRIES);
+    assert_eq!(max_tries(0.5), MAX_CONTROLLED_TRIES);
+    assert_eq!(max_tries(2e-5), 70_710);
+    let run = |h: f64, n: usize| {
+        let p = UnitParams {
+            tendon_slack_length: 0.04,
+            ..UnitParams::default()
+        };
+        let mut mt = Musculotendon1D::new(Muscle1D::<FullLaw>::new(2e-5), p);
+        for (id, v) in [
+            (ParamId::Dcomp, 1e-4),
+            (ParamId::Alpha, 1000.0),
+            (ParamId::S, 1e5),
+            (ParamId::Sigma0, 1e6),
+            (ParamId::Kc, 5.88),
+            (ParamId::Ke, 7.56),
+            (ParamId::D, 1.8),
+        ] {
+            mt.muscle.params.set(id, v).unwrap();
+        }
+        mt.set_path(0.04 + 0.05);
+        mt.initialize().unwrap();
+        let mut out = Vec::new();
+        for i in 0..2 * n {
+            mt.set_command(1.0);
+            // The path jumps to 1.3 L0 over the first step of 0.1 s, then
+            // is held.
+            let x = ((i + 1) as f64 / n as f64).min(1.0);
+            mt.set_path(0.04 + 0.05 * (1.0 + 0.3 * x));
+            mt.step(h).unwrap();
+            if (i + 1) % n == 0 {
+                out.push(mt.output(UnitOutput::Force));
+            }
+        }
+        (out, f0(&mt))
+    };
+    let (coarse, f0) = run(0.1, 1);
+    let (fine, _) = run(1e-3, 100);
+    for (c, f) in coarse.iter().zip(&fine) {
+        assert!((c - f).abs() <= 1e-3 * f0, "{c} vs {f} (F0 = {f0})");
+    }
+}
