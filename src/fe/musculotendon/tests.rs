@@ -195,7 +195,7 @@ fn derivatives_match_finite_differences_of_the_step_map() {
                     UnitOutput::FibreLength => L0,
                     _ => 1.0,
                 });
-                let tol = 2e-3 * d.abs() + 1e-7 * size * scale.max(1.0) / 1e-5;
+                let tol = 2e-3 * d.abs() + 1e-9 * size * scale.max(1.0) / 1e-5;
                 assert!(
                     (d - fd).abs() <= tol,
                     "{o:?} by_length {by_length} ε0 {eps0} α0 {alpha0} rigid {}: {d} vs fd {fd}",
