@@ -68,7 +68,8 @@ def render(all_models: list[dict]) -> str:
         "edit by hand (`tests/python/test_docs.py` fails when this page is stale). What the inputs and outputs mean",
         "over a step: [conventions.md](conventions.md); what happens outside the ranges: [bad-input.md](bad-input.md).",
         "",
-        "Parameters are `fixed` (set before `fmi2ExitInitializationMode`); min and max are enforced when set.",
+        "Parameters are `fixed` (set before `fmi2ExitInitializationMode`) but `threads` of the FE models, which is "
+        "`tunable` (also set between steps; it changes no result); min and max are enforced when set.",
         "Until the `length` input is set it equals `L0` (its XML start is the default `L0`).",
         "",
         "## At a glance",

@@ -187,11 +187,12 @@ fn the_actuator_declares_stiffness_in_newton_per_metre() {
     assert!(!Hill1D::info().units.iter().any(|u| u.name == "N/m"));
     // The GUIDs of the two full FMUs since the `length` input declares its
     // own range (LENGTH_RANGE, [1e-5, 100] m, in place of L0's) and, for
-    // HillMuscleFE, since the `radial_grading` parameter and its default 0.6: a new interface, a
-    // new GUID. Pinned so that an unintended interface change shows here.
+    // HillMuscleFE, since the `radial_grading` parameter and its default 0.6
+    // and the tunable `threads` parameter: a new interface, a new GUID.
+    // Pinned so that an unintended interface change shows here.
     assert_eq!(guid::<Hill1D>(), "{7c808cb6-7bd7-8378-be77-25860ec4a448}");
     #[cfg(feature = "fe")]
-    assert_eq!(guid::<HillFE>(), "{960da1e2-71eb-810e-af1f-77c357108c29}");
+    assert_eq!(guid::<HillFE>(), "{1f07a647-ef8f-8b5c-9be1-9ff36717f4cd}");
 }
 
 /// `HillMusculotendon1D`: its table follows the FMI 2.0 rules, its committed

@@ -9,10 +9,12 @@
 //! [`Discretization::reaction`] (the muscle force) and its derivatives
 //! [`Discretization::force_derivatives`], [`Discretization::sensitivities`].
 //!
-//! Invariants: a discretization is fixed once built and shared by every
-//! copy of a muscle's state; an evaluation fails (`Err`) on an inverted
-//! element or a non-finite force, never returns one; the forces with and
-//! without the tangent are the same bits.
+//! Invariants: a discretization is fixed once built (but for its thread
+//! count, [`Discretization::set_threads`], which changes no result) and
+//! shared by every copy of a muscle's state; an evaluation fails (`Err`) on
+//! an inverted element or a non-finite force, never returns one; the forces
+//! with and without the tangent are the same bits; every evaluation is the
+//! same bits for every thread count.
 //!
 //! # Boundary conditions ([`Ends`])
 //!
@@ -27,11 +29,16 @@
 //! The muscle force is the axial reaction on the moved face, Σ R_x over its
 //! nodes (tension positive).
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use crate::fe::assembly::{Factor, Pattern};
 use crate::fe::element::{nodal_volumes, IsochoricElement, TetReference};
 use crate::fe::mesh::{revolve_graded, FibreLayout, Fusiform, Grading, Mesh, Resolution, Section};
+use crate::fe::threads::{
+    in_order, Threads, RESIDUAL_ELEMENTS_PER_THREAD, TANGENT_ELEMENTS_PER_THREAD,
+};
 use crate::law::hill_fibre::FibreStress;
 use crate::law::stress::IsochoricStress;
 use crate::law::volumetric::volumetric_derivatives;
@@ -89,6 +96,8 @@ pub struct Discretization {
     /// The volumetric formulation ([`Volumetric::NodalAverage`] unless
     /// [`Discretization::with_volumetric`] says otherwise).
     pub volumetric: Volumetric,
+    /// How many threads the element loops may use ([`Self::set_threads`]).
+    threads: AtomicUsize,
 }
 
 impl Discretization {
@@ -212,6 +221,7 @@ impl Discretization {
             area: mean_area,
             fibres: FibreLayout::Axial,
             volumetric: Volumetric::NodalAverage,
+            threads: AtomicUsize::new(1),
             mesh,
         })
     }
@@ -220,6 +230,19 @@ impl Discretization {
     pub fn with_volumetric(mut self, volumetric: Volumetric) -> Discretization {
         self.volumetric = volumetric;
         self
+    }
+
+    /// Let the element loops of [`Self::evaluate`] use up to `threads`
+    /// threads (scoped to each call, [`crate::fe::threads`]). An execution
+    /// setting, not part of the problem: every result is the same bits for
+    /// every count, so it may change between any two calls.
+    pub fn set_threads(&self, threads: Threads) {
+        self.threads.store(threads.get(), Ordering::Relaxed);
+    }
+
+    /// The thread count [`Self::set_threads`] set (1 unless set).
+    pub fn threads(&self) -> Threads {
+        Threads::new(self.threads.load(Ordering::Relaxed)).unwrap_or_default()
     }
 
     pub fn n_nodes(&self) -> usize {
@@ -334,12 +357,14 @@ impl Discretization {
         }
         // Pass 2: element forces (and stiffness). The forces of element e on
         // its nodes are (V_e τ_iso + p̄_e v_e I) ∇N_b (module docs of
-        // [`crate::fe::element`]), with the spatial gradients ∇N_b of pass 1.
+        // [`crate::fe::element`]), with the spatial gradients ∇N_b of pass 1;
+        // per element on the configured threads ([`crate::fe::threads`]),
+        // summed in element order.
         let mut forces = vec![0.0; 3 * nn];
         let mut d_activation = vec![0.0; 3 * nn];
         let mut values = self.pattern.zeros();
         let mut elements = Vec::with_capacity(ne);
-        for e in 0..ne {
+        let kernel = |e: usize| {
             let tet = &self.mesh.tets[e];
             let pts = self.element_points(x, e);
             let reference = &self.references[e];
@@ -372,54 +397,48 @@ impl Discretization {
                 _ => p_bar,
             };
             let s = stress.tau * reference.volume + Matrix3::identity() * (p_bar * v);
-            for (b, &node) in tet.iter().enumerate() {
-                let fb = s * g[b];
-                forces[3 * node] += fb[0];
-                forces[3 * node + 1] += fb[1];
-                forces[3 * node + 2] += fb[2];
-            }
-            elements.push(ElementState {
+            let nodal = g.map(|gb| s * gb);
+            let state = ElementState {
                 lambda_f: stress.lambda_f,
                 j: stress.j,
                 j_assumed: match self.volumetric {
-                    Volumetric::NodalAverage => {
-                        0.25 * (j_nodal[tet[0]]
-                            + j_nodal[tet[1]]
-                            + j_nodal[tet[2]]
-                            + j_nodal[tet[3]])
-                    }
+                    Volumetric::NodalAverage => mean(&j_nodal),
                     Volumetric::Element => v / reference.volume,
                 },
                 history: stress.fibre.history,
                 sigma_see: stress.fibre.sigma_see,
-            });
-            {
-                let dtau_da = point.kirchhoff_activation_derivative();
-                for (b, &node) in tet.iter().enumerate() {
-                    let fa = dtau_da * g[b] * reference.volume;
+            };
+            let dtau_da = point.kirchhoff_activation_derivative();
+            let nodal_da = g.map(|gb| dtau_da * gb * reference.volume);
+            let el = IsochoricElement::from_point(point, *g, reference.volume);
+            let mut k: SMatrix<f64, 12, 12> = el.stiffness(reference.volume);
+            // p̄_e v_e (∇N_b ⊗ ∇N_c − ∇N_c ⊗ ∇N_b), and for the plain
+            // tetrahedron (U_J''(J_e)/V_e) (v_e ∇N_b) ⊗ (v_e ∇N_c).
+            for b in 0..4 {
+                for c in 0..4 {
+                    let h = (g[b] * g[c].transpose() - g[c] * g[b].transpose()) * (p_geometric * v)
+                        + g[b] * g[c].transpose() * (bulk_e * v * v / reference.volume);
                     for i in 0..3 {
-                        d_activation[3 * node + i] += fa[i];
-                    }
-                }
-                let el = IsochoricElement::from_point(point, *g, reference.volume);
-                let mut k: SMatrix<f64, 12, 12> = el.stiffness(reference.volume);
-                // p̄_e v_e (∇N_b ⊗ ∇N_c − ∇N_c ⊗ ∇N_b), and for the plain
-                // tetrahedron (U_J''(J_e)/V_e) (v_e ∇N_b) ⊗ (v_e ∇N_c).
-                for b in 0..4 {
-                    for c in 0..4 {
-                        let h = (g[b] * g[c].transpose() - g[c] * g[b].transpose())
-                            * (p_geometric * v)
-                            + g[b] * g[c].transpose() * (bulk_e * v * v / reference.volume);
-                        for i in 0..3 {
-                            for j in 0..3 {
-                                k[(3 * b + i, 3 * c + j)] += h[(i, j)];
-                            }
+                        for j in 0..3 {
+                            k[(3 * b + i, 3 * c + j)] += h[(i, j)];
                         }
                     }
                 }
-                self.pattern.add_element(&mut values, e, tet, &k);
             }
-        }
+            (nodal, state, nodal_da, k)
+        };
+        let threads = self.threads().for_loop(ne, TANGENT_ELEMENTS_PER_THREAD);
+        in_order(threads, ne, kernel, |e, (nodal, state, nodal_da, k)| {
+            let tet = &self.mesh.tets[e];
+            for (b, &node) in tet.iter().enumerate() {
+                for i in 0..3 {
+                    forces[3 * node + i] += nodal[b][i];
+                    d_activation[3 * node + i] += nodal_da[b][i];
+                }
+            }
+            elements.push(state);
+            self.pattern.add_element(&mut values, e, tet, &k);
+        });
         if self.volumetric == Volumetric::NodalAverage {
             // Σ_a (U_J''(J_a) / V_a) ∂v_a/∂x ⊗ ∂v_a/∂x, ∂v_a/∂x = Σ_{e∋a} (v_e/4) ∇N.
             let mut g = Vec::new();
@@ -556,11 +575,13 @@ impl Discretization {
             pressure[a] = volumetric_derivatives(j, p.d_comp).0;
             j_nodal_range = (j_nodal_range.0.min(j), j_nodal_range.1.max(j));
         }
-        // Pass 2: the law and the element forces.
+        // Pass 2: the law and the element forces, per element on the
+        // configured threads ([`crate::fe::threads`]), summed in element order.
         let mut forces = vec![0.0; 3 * nn];
         let mut elements = Vec::with_capacity(ne);
         let mut volume = 0.0;
-        for (e, tet) in self.mesh.tets.iter().enumerate() {
+        let kernel = |e: usize| {
+            let tet = &self.mesh.tets[e];
             let (f, j) = deformation[e];
             let reference = &self.references[e];
             let stress =
@@ -589,28 +610,33 @@ impl Discretization {
             let m = (stress.tau * (reference.volume / j)
                 + Matrix3::identity() * (p_bar * reference.volume))
                 * cof;
-            let mut f0 = Vector3::zeros();
-            for (&node, grad) in tet.iter().zip(&reference.grad).skip(1) {
-                let fb = m * grad;
-                f0 -= fb;
-                let a = 3 * node;
-                forces[a] += fb[0];
-                forces[a + 1] += fb[1];
-                forces[a + 2] += fb[2];
+            // The forces on nodes 1, 2, 3, then node 0's, minus their sum.
+            let mut nodal = [Vector3::zeros(); 4];
+            for b in 1..4 {
+                nodal[b] = m * reference.grad[b];
+                nodal[0] -= nodal[b];
             }
-            let a = 3 * tet[0];
-            forces[a] += f0[0];
-            forces[a + 1] += f0[1];
-            forces[a + 2] += f0[2];
-            volume += j * reference.volume;
-            elements.push(ElementState {
+            let state = ElementState {
                 lambda_f: stress.lambda_f,
                 j,
                 j_assumed,
                 history: stress.fibre.history,
                 sigma_see: stress.fibre.sigma_see,
-            });
-        }
+            };
+            (nodal, state, j * reference.volume)
+        };
+        let threads = self.threads().for_loop(ne, RESIDUAL_ELEMENTS_PER_THREAD);
+        in_order(threads, ne, kernel, |e, (nodal, state, v)| {
+            let tet = &self.mesh.tets[e];
+            for b in [1, 2, 3, 0] {
+                let a = 3 * tet[b];
+                forces[a] += nodal[b][0];
+                forces[a + 1] += nodal[b][1];
+                forces[a + 2] += nodal[b][2];
+            }
+            volume += v;
+            elements.push(state);
+        });
         if forces.iter().any(|f| !f.is_finite()) {
             return Err("a non-finite nodal force".into());
         }

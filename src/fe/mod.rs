@@ -8,7 +8,8 @@
 //! equilibrium), [`muscle`] (time stepping, initialization, error control)
 //! and [`step_map`] (one communication step, its outputs and their
 //! derivatives); [`memory`] estimates a mesh's peak memory before anything
-//! is built. Nothing here knows of FMI.
+//! is built; [`threads`] splits the element loops over opt-in scoped
+//! threads. Nothing here knows of FMI.
 
 pub mod assembly;
 pub mod discretization;
@@ -20,3 +21,4 @@ pub mod musculotendon;
 pub mod newton;
 pub mod step_map;
 pub mod tangent;
+pub mod threads;

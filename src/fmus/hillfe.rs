@@ -16,6 +16,7 @@ use crate::fe::step_map::{
     built_with, check_stretch, discretization, end_length, Committed, Outputs, StepLevel, Stepped,
     N_QUANTITIES,
 };
+use crate::fe::threads::Threads;
 use crate::fmi2::{Model, ModelError, StepError, VarType, Variability};
 use crate::fmus::common::{check_range, check_unit_interval, SUBSTEP_RTOL};
 use crate::fmus::table::{self, model_access, output, scene_interface, variables, Row, STATIC_LAW};
@@ -50,6 +51,8 @@ const GRADING_RANGE: Range = Range {
 /// description.
 pub(crate) mod mesh_rows {
     use super::{DEFAULT_GRADING, DEFAULT_MESH, GRADING_RANGE, N_AXIAL_RANGE, N_RADIAL_RANGE};
+    use crate::fe::threads::MAX_THREADS;
+    use crate::fmi2::Variability;
     use crate::fmus::table::{integer, parameter, real, Check, Row};
 
     /// `n_axial`.
@@ -90,6 +93,21 @@ pub(crate) mod mesh_rows {
         real("1", Some(DEFAULT_GRADING.radial), Some(GRADING_RANGE)),
         Check::Finite,
         )
+    }
+
+    /// `threads`: tunable, as it changes no result ([`crate::fe::threads`]);
+    /// not part of the serialized state (a restored instance runs on one
+    /// thread until set).
+    pub(crate) const fn threads<V>() -> Row<V> {
+        Row {
+            variability: Variability::Tunable,
+            ..parameter(
+                "threads",
+                "Threads the FE element loops may use, started and ended within each call (results are the same for every count); 1: the calling thread only",
+                integer(1, (1, MAX_THREADS as i32)),
+                Check::Closed,
+            )
+        }
     }
 
     /// `fibre_layout`.
@@ -153,6 +171,7 @@ variables! {
                 state_deps,
             )
         } => Integer(get m.newton_iterations);
+        Threads = mesh_rows::threads() => Integer(m.threads);
     }
 }
 
@@ -328,6 +347,9 @@ pub struct HillFEModel<S: Scene> {
     n_radial: i32,
     grading: Grading,
     fibre_layout: i32,
+    /// The element loops' threads (`mesh_rows::threads`), handed to the
+    /// discretization before each call that evaluates it.
+    threads: i32,
     command: f64,
     length: Option<f64>,
     command_rate: f64,
@@ -352,6 +374,11 @@ impl<S: Scene> HillFEModel<S> {
         } else {
             FibreLayout::Axial
         }
+    }
+
+    /// The `threads` parameter (its row's check keeps it in range).
+    fn threads(&self) -> Threads {
+        Threads::new(usize::try_from(self.threads).unwrap_or(1)).unwrap_or_default()
     }
 
     fn check_setup(&self) -> Result<(), ModelError> {
@@ -416,6 +443,7 @@ impl<S: Scene> HillFEModel<S> {
             n_radial: DEFAULT_MESH.n_radial as i32,
             grading: DEFAULT_GRADING,
             fibre_layout: 0,
+            threads: 1,
             command: 0.0,
             length: None,
             command_rate: 0.0,
@@ -456,6 +484,7 @@ impl<S: Scene> Model for HillFEModel<S> {
         let length = self.length();
         check_stretch(&self.params, self.l0, length).map_err(ModelError)?;
         let disc = self.discretization()?;
+        disc.set_threads(self.threads());
         let stepped = Committed::initialize(disc, &self.params, self.area, length, a, da_du)
             .map_err(|e| ModelError(format!("initialization: {e}")))?;
         self.commit(stepped);
@@ -481,6 +510,7 @@ impl<S: Scene> Model for HillFEModel<S> {
             decay.value,
         );
         let tolerance = self.adaptive_substeps.then_some(self.substep_tolerance);
+        state.muscle.disc.set_threads(self.threads());
         let stepped = state
             .step(&self.params, self.area, level, end_length, tolerance)
             .map_err(|e| StepError::Discard(e.to_string()))?;

@@ -26,6 +26,7 @@ use crate::fe::discretization::Discretization;
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::musculotendon::{MusculotendonFE, Setup, UnitOutput as FeOutput};
 use crate::fe::step_map::{built_with, discretization, StepLevel};
+use crate::fe::threads::Threads;
 use crate::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, StepError, VarType};
 use crate::law::activation::Decay;
 use crate::law::musculotendon::{Unit, UnitParams};
@@ -84,6 +85,7 @@ variables! {
         /// last step map, the same number as
         /// fmi2GetDirectionalDerivative(force, length).
         Out(o: MtOutput) = OUTPUTS => Real(get m.output(o));
+        Threads = mesh_rows::threads() => Integer(m.threads);
     }
 }
 
@@ -249,6 +251,9 @@ pub struct MusculotendonFEModel<S: Scene> {
     n_radial: i32,
     grading: Grading,
     fibre_layout: i32,
+    /// The element loops' threads (`mesh_rows::threads`), handed to the
+    /// discretization before each call that evaluates it.
+    threads: i32,
     command: f64,
     command_rate: f64,
     /// The path length input; `None` until set (the rest path).
@@ -294,6 +299,11 @@ impl<S: Scene> MusculotendonFEModel<S> {
     /// The tendon and pennation of the current parameters; F0 = σ0 · area.
     fn tendon_unit(&self) -> Unit {
         Unit::new(&self.unit, self.l0, self.params.sigma0 * self.area)
+    }
+
+    /// The `threads` parameter (its row's check keeps it in range).
+    fn threads(&self) -> Threads {
+        Threads::new(usize::try_from(self.threads).unwrap_or(1)).unwrap_or_default()
     }
 
     fn check_setup(&self) -> Result<(), ModelError> {
@@ -368,6 +378,7 @@ impl<S: Scene> MusculotendonFEModel<S> {
             n_radial: DEFAULT_MESH.n_radial as i32,
             grading: DEFAULT_GRADING,
             fibre_layout: 0,
+            threads: 1,
             command: 0.0,
             command_rate: 0.0,
             path: None,
@@ -418,6 +429,7 @@ impl<S: Scene> Model for MusculotendonFEModel<S> {
             (self.command, 1.0)
         };
         let disc = self.discretization()?;
+        disc.set_threads(self.threads());
         let unit = self.tendon_unit();
         let state = MusculotendonFE::initialize(disc, &self.setup(&unit), self.path(), a, da_du)
             .map_err(|e| ModelError(format!("initialization: {e}")))?;
@@ -451,6 +463,7 @@ impl<S: Scene> Model for MusculotendonFEModel<S> {
         );
         let tolerance = self.adaptive_substeps.then_some(self.substep_tolerance);
         let unit = self.tendon_unit();
+        state.muscle.muscle.disc.set_threads(self.threads());
         let next = state
             .step(&self.setup(&unit), level, path, tolerance)
             .map_err(|e| StepError::Discard(e.to_string()))?;

@@ -120,6 +120,7 @@ impl crate::scene::Scene for HillActivatedFE {
             crate::scene::Setting { name: "axial_grading", value: crate::scene::Value::Real(0.9), constant: true },
             crate::scene::Setting { name: "radial_grading", value: crate::scene::Value::Real(0.6), constant: true },
             crate::scene::Setting { name: "fibre_layout", value: crate::scene::Value::Integer(0), constant: true },
+            crate::scene::Setting { name: "threads", value: crate::scene::Value::Integer(1), constant: true },
         ],
         default_experiment: (0.0, 2.5, 0.01),
     };
@@ -305,6 +306,7 @@ impl crate::scene::Scene for HillMuscleFE {
             crate::scene::Setting { name: "axial_grading", value: crate::scene::Value::Real(0.9), constant: false },
             crate::scene::Setting { name: "radial_grading", value: crate::scene::Value::Real(0.6), constant: false },
             crate::scene::Setting { name: "fibre_layout", value: crate::scene::Value::Integer(0), constant: false },
+            crate::scene::Setting { name: "threads", value: crate::scene::Value::Integer(1), constant: false },
         ],
         default_experiment: (0.0, 2.5, 0.01),
     };
@@ -492,6 +494,7 @@ impl crate::scene::Scene for HillMusculotendonFE {
             crate::scene::Setting { name: "axial_grading", value: crate::scene::Value::Real(0.9), constant: false },
             crate::scene::Setting { name: "radial_grading", value: crate::scene::Value::Real(0.6), constant: false },
             crate::scene::Setting { name: "fibre_layout", value: crate::scene::Value::Integer(0), constant: false },
+            crate::scene::Setting { name: "threads", value: crate::scene::Value::Integer(1), constant: false },
         ],
         default_experiment: (0.0, 2.5, 0.001),
     };
@@ -587,6 +590,7 @@ impl crate::scene::Scene for HillPassiveFE {
             crate::scene::Setting { name: "axial_grading", value: crate::scene::Value::Real(0.9), constant: false },
             crate::scene::Setting { name: "radial_grading", value: crate::scene::Value::Real(0.6), constant: false },
             crate::scene::Setting { name: "fibre_layout", value: crate::scene::Value::Integer(0), constant: true },
+            crate::scene::Setting { name: "threads", value: crate::scene::Value::Integer(1), constant: true },
         ],
         default_experiment: (0.0, 2.0, 0.01),
     };

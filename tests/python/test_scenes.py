@@ -167,9 +167,10 @@ def test_the_scenes_have_their_own_guids_and_the_full_fmus_keep_theirs():
     assert len(set(guids.values())) == len(guids)
     # The full FMUs' GUIDs, as tests/model_description.rs pins them (changed
     # when the length input got its own declared range, and HillMuscleFE when
-    # it got the radial_grading parameter, default 0.6).
+    # it got the radial_grading parameter, default 0.6, and the tunable
+    # threads parameter).
     assert guids["HillMuscle1D"] == "{7c808cb6-7bd7-8378-be77-25860ec4a448}"
-    assert guids["HillMuscleFE"] == "{960da1e2-71eb-810e-af1f-77c357108c29}"
+    assert guids["HillMuscleFE"] == "{1f07a647-ef8f-8b5c-9be1-9ff36717f4cd}"
 
 
 def assert_bitwise(a, b, what):
