@@ -37,6 +37,9 @@
 //! permuted once per mesh by its AMD ordering: each factorisation gathers
 //! the constrained values into the permuted triangle through a fixed map
 //! instead of faer sorting and permuting the whole matrix, to the same bits.
+//! For Newton's directions the same Cholesky factorisation in single
+//! precision is taken where it is adequate for the matrix, the f64 one
+//! otherwise ([`Pattern::factorize_direction`], module `cholesky`).
 
 use std::sync::{Arc, OnceLock};
 
@@ -44,14 +47,17 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::solvers::Solve;
 use faer::perm::Perm;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, IntranodeLbltRef, LltRef,
-    SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, IntranodeLbltRef, SymbolicCholesky,
+    SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::linalg::{LuError, SupernodalThreshold};
 use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{MatMut, Side};
 use nalgebra::{Matrix3, SMatrix};
+
+mod cholesky;
+pub use cholesky::{Cholesky, Precision, MAX_SINGLE_ERROR};
 
 /// The node-level sparsity of the tangent and the scatter positions.
 #[derive(Debug)]
@@ -81,6 +87,9 @@ pub struct Pattern {
     llt: Arc<PermutedCholesky>,
     lblt: OnceLock<Result<Arc<SymbolicCholesky<usize>>, String>>,
     lu: OnceLock<Result<SymbolicLu<usize>, String>>,
+    /// Whether [`Self::factorize_direction`] may take the single-precision
+    /// factor (default; off: always [`Self::factorize`]'s, for comparisons).
+    single: bool,
 }
 
 /// Largest backward error ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) of the probe solve
@@ -196,7 +205,14 @@ impl Pattern {
             llt,
             lblt: OnceLock::new(),
             lu: OnceLock::new(),
+            single: true,
         })
+    }
+
+    /// Let [`Self::factorize_direction`] take the single-precision factor
+    /// (`true`, the default) or not.
+    pub fn set_single_precision(&mut self, on: bool) {
+        self.single = on;
     }
 
     /// Number of stored entries.
@@ -303,15 +319,20 @@ impl Pattern {
     /// `Err` when LU's probe solve is not finite (a singular tangent).
     pub fn factorize(&self, values: &[f64]) -> Result<Factor, String> {
         let constrained = self.constrained(values)?;
-        if let Ok(llt) = self.factorize_llt(&constrained) {
+        self.factorize_constrained(&constrained)
+    }
+
+    /// [`Self::factorize`] of the constrained values.
+    fn factorize_constrained(&self, constrained: &[f64]) -> Result<Factor, String> {
+        if let Ok(llt) = self.factorize_llt(constrained) {
             return Ok(llt);
         }
-        let lblt = Factor::BunchKaufman(Arc::new(self.factorize_lblt(&constrained)?));
-        if self.backward_error(&constrained, &lblt) <= MAX_BACKWARD_ERROR {
+        let lblt = Factor::BunchKaufman(Arc::new(self.factorize_lblt(constrained)?));
+        if self.backward_error(constrained, &lblt) <= MAX_BACKWARD_ERROR {
             return Ok(lblt);
         }
-        let lu = self.factorize_lu(&constrained)?;
-        if self.backward_error(&constrained, &lu).is_nan() {
+        let lu = self.factorize_lu(constrained)?;
+        if self.backward_error(constrained, &lu).is_nan() {
             return Err("the tangent is singular (LU: a zero pivot)".into());
         }
         Ok(lu)
@@ -328,6 +349,7 @@ impl Pattern {
                 Factor::BunchKaufman(Arc::new(self.factorize_lblt(&constrained)?))
             }
             FactorKind::Lu => self.factorize_lu(&constrained)?,
+            FactorKind::SingleCholesky => self.factorize_single(&constrained)?,
         };
         let error = self.backward_error(&constrained, &factor);
         Ok((factor, error))
@@ -355,30 +377,11 @@ impl Pattern {
     /// into the permuted triangle ([`PermutedCholesky`]) and factorised
     /// there without faer's own permutation of the matrix.
     fn factorize_llt(&self, constrained: &[f64]) -> Result<Factor, String> {
-        let order = &self.llt;
-        let permuted: Vec<f64> = order.source.iter().map(|&s| constrained[s]).collect();
-        let symbolic = &order.symbolic;
-        let mut values = try_filled(symbolic.len_val(), 0.0, "the Cholesky factor")?;
-        let par = faer::get_global_parallelism();
-        let mut scratch = MemBuffer::try_new(
-            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-        )
-        .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?;
-        symbolic
-            .factorize_numeric_llt(
-                &mut values,
-                SparseColMatRef::new(order.numeric.as_ref(), &permuted),
-                order.side,
-                Default::default(),
-                par,
-                MemStack::new(&mut scratch),
-                Default::default(),
-            )
-            .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?;
-        Ok(Factor::Cholesky(Arc::new(Cholesky {
-            order: order.clone(),
-            values,
-        })))
+        Ok(Factor::Cholesky(Arc::new(Cholesky::<f64>::new(
+            &self.llt,
+            constrained,
+            &self.prescribed,
+        )?)))
     }
 
     /// The supernodal LBLᵀ factorisation of the constrained values, with
@@ -465,13 +468,18 @@ impl Pattern {
         Ok(Factor::Lu(Arc::new(lu)))
     }
 
+    /// The probe right-hand side b_i = 1 + (i mod 7)/7 of the factor tests.
+    fn probe(n: usize) -> Vec<f64> {
+        (0..n).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect()
+    }
+
     /// Backward error ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) of `factor`'s solution x
     /// of K x = b, K the `constrained` matrix and b the fixed vector
     /// b_i = 1 + (i mod 7)/7 (module docs); NaN when the solve is not finite
     /// (a zero pivot).
     fn backward_error(&self, constrained: &[f64], factor: &Factor) -> f64 {
         let n = 3 * self.n_nodes;
-        let b: Vec<f64> = (0..n).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+        let b = Self::probe(n);
         let mut x = b.clone();
         factor.solve_in_place(&mut x);
         let mut kx = vec![0.0; n];
@@ -603,35 +611,6 @@ impl PermutedCholesky {
     }
 }
 
-/// A Cholesky factorisation ([`Pattern::factorize`]) of the permuted
-/// matrix ([`PermutedCholesky`]).
-pub struct Cholesky {
-    order: Arc<PermutedCholesky>,
-    values: Vec<f64>,
-}
-
-impl Cholesky {
-    /// Solve with the permuted factor: b permuted, solved, permuted back
-    /// (what faer's own permuted solve does).
-    fn solve_in_place(&self, b: &mut [f64]) {
-        let n = b.len();
-        let forward = &self.order.forward;
-        let mut y: Vec<f64> = forward.iter().map(|&f| b[f]).collect();
-        let symbolic = &self.order.symbolic;
-        let par = faer::get_global_parallelism();
-        let mut scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, par));
-        LltRef::new(symbolic, &self.values).solve_in_place_with_conj(
-            faer::Conj::No,
-            MatMut::from_column_major_slice_mut(&mut y, n, 1),
-            par,
-            MemStack::new(&mut scratch),
-        );
-        for (&f, v) in forward.iter().zip(y) {
-            b[f] = v;
-        }
-    }
-}
-
 /// A supernodal LBLᵀ factorisation ([`Pattern::factorize`]): the factor's
 /// values, the 2 × 2 pivots' subdiagonal and the pivoting permutation, with
 /// the symbolic structure they belong to.
@@ -665,7 +644,10 @@ impl BunchKaufman {
 /// A numeric factorisation of the constrained tangent.
 #[derive(Clone)]
 pub enum Factor {
-    Cholesky(Arc<Cholesky>),
+    Cholesky(Arc<Cholesky<f64>>),
+    /// The single-precision Cholesky factor of Newton's directions
+    /// ([`Pattern::factorize_direction`]).
+    SingleCholesky(Arc<Cholesky<f32>>),
     BunchKaufman(Arc<BunchKaufman>),
     Lu(Arc<Lu<usize, f64>>),
 }
@@ -674,6 +656,7 @@ pub enum Factor {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FactorKind {
     Cholesky,
+    SingleCholesky,
     BunchKaufman,
     Lu,
 }
@@ -685,6 +668,7 @@ impl Factor {
         let n = b.len();
         match self {
             Factor::Cholesky(f) => f.solve_in_place(b),
+            Factor::SingleCholesky(f) => f.solve_in_place(b),
             Factor::BunchKaufman(f) => f.solve_in_place(b),
             Factor::Lu(f) => f.solve_in_place(MatMut::from_column_major_slice_mut(b, n, 1)),
         }
@@ -695,6 +679,7 @@ impl Factor {
     pub fn kind(&self) -> FactorKind {
         match self {
             Factor::Cholesky(_) => FactorKind::Cholesky,
+            Factor::SingleCholesky(_) => FactorKind::SingleCholesky,
             Factor::BunchKaufman(_) => FactorKind::BunchKaufman,
             Factor::Lu(_) => FactorKind::Lu,
         }

@@ -113,7 +113,7 @@ fn form_tangent(disc: &Discretization, p: &Params, anchor: &Anchor) -> Result<Ta
         anchor.pressure.as_deref(),
     )?;
     let values = ev.tangent.as_ref().expect("tangent requested");
-    let factor = disc.pattern.factorize(values)?;
+    let factor = disc.pattern.factorize_direction(values)?;
     let (d_length, d_activation, d_force) = disc.sensitivities(&ev, &factor);
     Ok(Tangent {
         factor,
