@@ -56,6 +56,20 @@ impl Tendon {
         length / self.slack_length - 1.0
     }
 
+    /// The strain at which the tendon carries `force` (N) > 0: the inverse
+    /// of [`tendon_curve`], ε_toe/k_toe · ln(1 + f (e^k_toe − 1)/F_toe) for
+    /// f = F/F0 ≤ F_toe, ε_toe + (f − F_toe)/k_lin above (MODEL_NOTES
+    /// "Musculotendon unit").
+    pub fn strain_at(&self, force: f64) -> f64 {
+        let (eps0, f) = (self.strain_at_f0, force / self.f0);
+        let eps_toe = TOE_STRAIN_RATIO * eps0;
+        if f <= F_TOE {
+            eps_toe / K_TOE * (f * K_TOE.exp_m1() / F_TOE).ln_1p()
+        } else {
+            eps_toe + (f - F_TOE) * eps0 / LINEAR_SLOPE_TIMES_STRAIN
+        }
+    }
+
     /// Force F_T = F0 f_T(ε) (N) and stiffness dF_T/dL_T (N/m) at tendon
     /// length `length` (MODEL_NOTES "Musculotendon unit"; ε as
     /// [`Tendon::strain`]).
@@ -79,6 +93,20 @@ mod tests {
             // 1.712 (1 − 0.609) + 0.33 = 0.999392 at ε0.
             let (f, _) = tendon_curve(eps0, eps0);
             assert!((f - 0.999392).abs() < 1e-12, "{f}");
+        }
+    }
+
+    #[test]
+    fn strain_at_inverts_the_curve() {
+        let t = Tendon {
+            slack_length: 0.2,
+            strain_at_f0: 0.04,
+            f0: 800.0,
+        };
+        for eps in [1e-6, 0.003, 0.0243, 0.03, 0.1] {
+            let f = t.force(t.slack_length * (1.0 + eps)).0;
+            let back = t.strain_at(f);
+            assert!((back - eps).abs() <= 1e-12, "{eps}: {back}");
         }
     }
 
