@@ -39,6 +39,7 @@ use crate::law::musculotendon::{
     solve_equilibrium, EquilibriumError, MuscleForce, Tolerance, Unit, TRUST,
 };
 use crate::law::pennation::MIN_COS;
+use crate::law::tendon::RUPTURE_STRAIN_RATIO;
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::Params;
 
@@ -139,6 +140,11 @@ fn unsolvable(e: EquilibriumError<StepFailure>, path: f64) -> StepFailure {
         EquilibriumError::NoRoot { bound, residual } => format!(
             "no equilibrium of tendon and muscle for fibre lengths the law can evaluate \
              (F_M cos alpha - F_T = {residual:e} N at fibre length {bound} m)"
+        ),
+        EquilibriumError::TendonRupture { strain, max_strain } => format!(
+            "the equilibrium needs a tendon strain of {strain} or more, past the tendon's \
+             rupture strain {max_strain} ({RUPTURE_STRAIN_RATIO} tendon_strain_at_F0); a shorter \
+             path or a larger tendon_strain_at_F0 is needed"
         ),
         EquilibriumError::NoConvergence { lo, hi } => {
             format!("the equilibrium did not converge (fibre length in [{lo}, {hi}] m)")

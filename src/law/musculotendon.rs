@@ -17,7 +17,8 @@
 //! residual there is below the tolerance (or at the resolution of L_M in
 //! binary64, reported in [`Equilibrium::residual`]); a root that does not
 //! exist in the muscle's evaluable range, or only past the largest
-//! pennation angle, is an error, never a clamped force.
+//! pennation angle, or only past the tendon's rupture strain
+//! ([`Tendon::max_strain`]), is an error, never a clamped force.
 
 use super::params::{ParamError, TendonParamId, TENDON_PARAMETERS};
 use super::pennation::{Pennated, Pennation};
@@ -180,6 +181,9 @@ pub enum EquilibriumError<E> {
     /// No root in the fibre lengths the muscle can evaluate: the residual
     /// F_M cos α − F_T keeps the sign `residual` (N) at the bound `bound`.
     NoRoot { bound: f64, residual: f64 },
+    /// The equilibrium needs a tendon strain of at least `strain`, past the
+    /// tendon's rupture strain `max_strain` ([`Tendon::max_strain`]).
+    TendonRupture { strain: f64, max_strain: f64 },
     /// The iteration cap was reached.
     NoConvergence { lo: f64, hi: f64 },
 }
@@ -261,7 +265,11 @@ impl Unit {
 /// unbounded. Converged
 /// when |R| ≤ `tol` ([`Tolerance`], at the point's F_T), or when the
 /// Newton correction is below 4 ulp of L_M. A slack tendon (F_T = 0) gives
-/// the root F_M = 0.
+/// the root F_M = 0. The tendon strain falls as L_M grows, so a root that
+/// needs more than the rupture strain ([`Tendon::max_strain`]) is refused
+/// as soon as it is known: before any evaluation when the strain exceeds it
+/// at the longest evaluable fibres, or at a point with R > 0 (the root is
+/// shorter) and a strain past it.
 ///
 /// Where the muscle cannot be evaluated (its closure fails), the evaluable
 /// lengths end between the last good point and the failed one: no later
@@ -344,6 +352,16 @@ where
     let (mut lo_bound, mut hi_bound) = (range.0.max(min_fibre), range.1);
     let (mut lo_failed, mut hi_failed) = (false, false);
     // The bracket: the ends with R < 0 (lo) and R > 0 (hi) once known.
+    let rupture = |strain: f64| EquilibriumError::TendonRupture {
+        strain,
+        max_strain: tendon.max_strain(),
+    };
+    if lo_bound <= hi_bound {
+        let least = tendon.strain(path - pen.at(hi_bound).projection);
+        if least > tendon.max_strain() {
+            return Err(rupture(least));
+        }
+    }
     let (mut lo, mut hi) = (lo_bound, hi_bound);
     let (mut lo_known, mut hi_known) = (false, false);
     let mut x = guess.clamp(lo_bound, hi_bound);
@@ -406,6 +424,9 @@ where
         };
         good = Some(x);
         halvings = 0;
+        if pt.strain > tendon.max_strain() && pt.r >= -unit.tolerance_at(tol, pt.ft) {
+            return Err(rupture(pt.strain));
+        }
         let step = pt.r / pt.dr;
         let newton_ok = pt.dr > 0.0 && step.is_finite();
         if pt.r.abs() <= unit.tolerance_at(tol, pt.ft)

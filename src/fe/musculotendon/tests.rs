@@ -111,16 +111,16 @@ fn every_step_ends_in_equilibrium_within_tolerance() {
 
 /// The equilibrium's tolerance stays ten times the FE solve's force
 /// tolerance (relative to max(σ0 A, |F_M|)) at every force the tendon can
-/// carry (here up to a strain of 0.1, 3.567 F0), at any pennation.
+/// carry, up to its rupture strain (3.567 F0), at any pennation.
 #[test]
-fn the_tolerance_keeps_its_margin_at_large_tendon_forces() {
+fn the_tolerance_keeps_its_margin_up_to_the_rupture_force() {
     let p = Params::default();
     for alpha0 in [0.0, 1.0] {
         let u = unit(0.04, alpha0, true);
         let s = setup(&p, &u);
         let f0 = u.tendon.f0;
         let t = &u.tendon;
-        let f_max = t.force(t.slack_length * 1.1).0;
+        let f_max = t.force(t.slack_length * (1.0 + t.max_strain())).0;
         assert!(f_max > 3.5 * f0);
         for ft in [0.0, 0.5 * f0, f0, 2.0 * f0, f_max] {
             for cos in [1.0, 0.5, MIN_COS] {
@@ -309,11 +309,18 @@ fn activation_extremes_and_path_jumps_are_defined() {
     assert!(jumped.outputs.iter().all(|x| x.is_finite()));
     let back = jumped.step(&s, level(&p, 1.0, 0.0), path0, None).unwrap();
     assert!(residual(&s, &back).abs() <= s.tol(back.output(UnitOutput::Force)));
-    // A path far longer: the tendon takes it (defined).
+    // A path longer by 5 % of L_TS: the tendon takes it (defined).
     let far = back
-        .step(&s, level(&p, 0.0, 0.0), path0 + 3.0 * L0, None)
+        .step(&s, level(&p, 0.0, 0.0), path0 + 0.05 * 0.1, None)
         .unwrap();
     assert!(residual(&s, &far).abs() <= s.tol(far.output(UnitOutput::Force)));
+    // A path far longer, past the tendon's rupture strain: refused, the
+    // unit unchanged.
+    let e = back
+        .step(&s, level(&p, 0.0, 0.0), path0 + 3.0 * L0, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("rupture strain"), "{e}");
     // A rigid tendon on that path would stretch the fibres past what the
     // law can evaluate: refused, and the unit stepped from is unchanged.
     let u = unit(0.04, 0.0, false);

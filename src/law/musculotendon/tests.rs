@@ -1,6 +1,6 @@
 //! Tests of the musculotendon equilibrium on a synthetic monotone muscle:
 //! the residual, the hard cases, the derivatives, and the safeguards
-//! (fallback, failed regions, halving cap, trust length).
+//! (fallback, failed regions, halving cap, trust length, rupture strain).
 
 use super::*;
 
@@ -222,6 +222,50 @@ fn the_step_halving_is_capped() {
     assert_eq!(trials.len() as u32, 2 + MAX_HALVINGS, "{trials:?}");
 }
 
+/// A path whose equilibrium needs the tendon past its rupture strain
+/// is refused: before any evaluation when even the longest evaluable
+/// fibres leave it there, else once a point shows it.
+#[test]
+fn a_tendon_past_its_rupture_strain_is_refused() {
+    let u = unit(0.04, 0.3, true);
+    let range = (0.1 * L0, 5.0 * L0);
+    let mut n = 0;
+    let r = solve_equilibrium(&u, 100.0, range, L0, FIXED, None, |l| {
+        n += 1;
+        synthetic(0.0)(l)
+    });
+    match r {
+        Err(EquilibriumError::TendonRupture { strain, max_strain }) => {
+            assert!(
+                strain > max_strain && (max_strain - 0.1).abs() < 1e-15,
+                "{strain}"
+            )
+        }
+        other => panic!("{:?}", other.map(|e| e.tendon_force)),
+    }
+    assert_eq!(n, 0);
+    // Paths around the one whose equilibrium is at the rupture strain.
+    let at_rupture = |path: f64| solve(&u, path, 1.0).map(|e| e.tendon_strain);
+    let (mut lo, mut hi) = (0.09, 0.2);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        match at_rupture(mid) {
+            Ok(_) => lo = mid,
+            Err(EquilibriumError::TendonRupture { .. }) => hi = mid,
+            Err(e) => panic!("{e:?}"),
+        }
+    }
+    let eq = solve(&u, lo, 1.0).unwrap();
+    assert!(
+        eq.tendon_strain <= 0.1 && eq.tendon_strain > 0.1 - 1e-9,
+        "{}",
+        eq.tendon_strain
+    );
+    assert!(eq.tendon_force > 3.56 * F0, "{}", eq.tendon_force);
+    // A rigid tendon has no strain and no such bound.
+    assert!(solve(&unit(0.04, 0.3, false), 0.13, 1.0).is_ok());
+}
+
 #[test]
 fn defaults_are_in_range_and_bad_values_are_refused() {
     let mut p = UnitParams::default();
@@ -242,14 +286,22 @@ fn defaults_are_in_range_and_bad_values_are_refused() {
 
 #[test]
 fn the_residual_is_below_tolerance_over_stiffness_pennation_and_activation() {
-    let mut worst: f64 = 0.0;
-    let mut most = 0;
+    let (mut worst, mut most, mut refused): (f64, u32, u32) = (0.0, 0, 0);
     for eps0 in [0.1, 0.04, 1e-2, 1e-3, 1e-4, 1e-6] {
         for alpha0 in [0.0, 0.5, 1.0] {
             for a in [0.0, 0.5, 1.0] {
                 for path in [0.07, 0.085, 0.09, 0.1, 0.12] {
                     let u = unit(eps0, alpha0, true);
-                    let eq = solve(&u, path, a).unwrap();
+                    let eq = match solve(&u, path, a) {
+                        Ok(eq) => eq,
+                        // Past the tendon's rupture strain: refused.
+                        Err(EquilibriumError::TendonRupture { strain, max_strain }) => {
+                            assert!(strain > max_strain);
+                            refused += 1;
+                            continue;
+                        }
+                        Err(e) => panic!("{e:?}"),
+                    };
                     let m = eq.muscle.force * eq.pennation.cos;
                     // The residual at the returned point, recomputed.
                     let ft = u.tendon.force(path - eq.pennation.projection).0;
@@ -269,7 +321,11 @@ fn the_residual_is_below_tolerance_over_stiffness_pennation_and_activation() {
             }
         }
     }
-    eprintln!("worst residual {worst:e} F0, at most {most} evaluations");
+    eprintln!(
+        "worst residual {worst:e} F0, at most {most} evaluations, {refused} of 270 past \
+         the rupture strain"
+    );
+    assert!(refused < 135, "{refused}");
     assert!(most <= 30, "{most}");
 }
 
