@@ -296,9 +296,9 @@ mod tests {
         v.iter().fold(0.0f64, |m, a| m.max(a.abs()))
     }
 
-    /// The default mesh, and its passive equilibrium at 1.1 L0.
-    fn default_mesh_stretched() -> (Arc<Discretization>, Vec<f64>) {
-        let d = Arc::new(
+    /// The default (lumped, graded) mesh.
+    fn default_mesh() -> Arc<Discretization> {
+        Arc::new(
             Discretization::fusiform_graded(
                 L0,
                 MEAN_AREA,
@@ -308,7 +308,12 @@ mod tests {
                 Ends::Clamped,
             )
             .unwrap(),
-        );
+        )
+    }
+
+    /// The default mesh, and its passive equilibrium at 1.1 L0.
+    fn default_mesh_stretched() -> (Arc<Discretization>, Vec<f64>) {
+        let d = default_mesh();
         let (m, _) = Muscle::isometric(d.clone(), &Params::default(), 1.1 * L0, 0.0).unwrap();
         (d, m.x)
     }
@@ -448,17 +453,7 @@ mod tests {
     #[ignore]
     fn single_precision_census() {
         let p = Params::default();
-        let d = Arc::new(
-            Discretization::fusiform_graded(
-                L0,
-                MEAN_AREA,
-                LUMPED,
-                LUMPED_GRADING,
-                FibreLayout::Axial,
-                Ends::Clamped,
-            )
-            .unwrap(),
-        );
+        let d = default_mesh();
         let (mut m, _) = Muscle::isometric(d.clone(), &p, L0, 0.0).unwrap();
         let mut seen: Vec<*const crate::fe::tangent::TangentCache> = Vec::new();
         let (mut single, mut double) = (0, 0);
