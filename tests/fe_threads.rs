@@ -170,11 +170,18 @@ fn steps_and_runs_are_the_same_bits_at_every_thread_count() {
     }
 }
 
+/// The mesh of [`small_fmu`]: the smallest whose tangent loop is split at
+/// 2 threads (the test below asserts it).
+const SMALL: Resolution = Resolution {
+    n_axial: 8,
+    n_radial: 2,
+};
+
 /// A small `HillMuscleFE` at 0.5 activation and 1.05 L0.
 fn small_fmu() -> HillFE {
     let mut m = HillFE::new();
-    m.set_integer(Var::NAxial, 4).unwrap();
-    m.set_integer(Var::NRadial, 1).unwrap();
+    m.set_integer(Var::NAxial, SMALL.n_axial as i32).unwrap();
+    m.set_integer(Var::NRadial, SMALL.n_radial as i32).unwrap();
     m.set_real(Var::Activation, 0.5).unwrap();
     m.initialize().unwrap();
     m
@@ -217,6 +224,12 @@ fn the_fmus_threads_parameter_is_refused_outside_its_range() {
 /// at 2 threads restores at 1 and continues to the same bits.
 #[test]
 fn the_fmus_threads_change_no_result_and_are_not_in_the_state() {
+    // The FMU's mesh is large enough for its tangent to use 2 threads.
+    let ne = specimen(SMALL).n_elements();
+    assert!(
+        ne >= 2 * hill_muscle::fe::threads::TANGENT_ELEMENTS_PER_THREAD,
+        "{ne} elements: one thread"
+    );
     let mut one = small_fmu();
     let mut two = small_fmu();
     two.set_integer(Var::Threads, 2).unwrap();

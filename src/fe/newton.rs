@@ -80,7 +80,8 @@
 //! [`MAX_NEWTON_ITERATIONS`] iterations, one factorisation each, before the
 //! fallbacks (the linearised start, damped Newton, continuation) that reach
 //! the equilibrium in a few. [`STALL_ITERATIONS`] fresh-tangent iterations
-//! in a row with STALL_CONTRACTION < θ ≤ 1 end the attempt early. The
+//! in a row with STALL_CONTRACTION < θ ≤ 1 end the attempt early. Damped
+//! Newton (the residual merit), which is meant to creep, is never cut. The
 //! equilibrium a step converges to is the same to the tolerance; only the
 //! path to it changes, and only on steps that stall.
 //!
@@ -615,7 +616,11 @@ impl Discretization {
                             *pi = q + (1.0 - alpha) * (*pi - c);
                         }
                     }
-                    stalled = if fresh && th > STALL_CONTRACTION && th <= 1.0 {
+                    stalled = if merit == Merit::Natural
+                        && fresh
+                        && th > STALL_CONTRACTION
+                        && th <= 1.0
+                    {
                         stalled + 1
                     } else {
                         0

@@ -78,18 +78,35 @@ where
     let bound = |t: usize| t * n / threads;
     std::thread::scope(|s| {
         let kernel = &kernel;
+        // A thread the OS refuses (process limits) leaves its chunk to the
+        // calling thread: the same results, in the same order.
         let workers: Vec<_> = (1..threads)
-            .map(|t| s.spawn(move || (bound(t)..bound(t + 1)).map(kernel).collect::<Vec<T>>()))
+            .map(|t| {
+                std::thread::Builder::new()
+                    .spawn_scoped(s, move || {
+                        (bound(t)..bound(t + 1)).map(kernel).collect::<Vec<T>>()
+                    })
+                    .ok()
+            })
             .collect();
         for e in 0..bound(1) {
             sink(e, kernel(e));
         }
         for (t, worker) in (1..threads).zip(workers) {
-            let results = worker
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-            for (e, r) in (bound(t)..).zip(results) {
-                sink(e, r);
+            match worker {
+                Some(w) => {
+                    let results = w
+                        .join()
+                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                    for (e, r) in (bound(t)..).zip(results) {
+                        sink(e, r);
+                    }
+                }
+                None => {
+                    for e in bound(t)..bound(t + 1) {
+                        sink(e, kernel(e));
+                    }
+                }
             }
         }
     });
