@@ -284,14 +284,13 @@ def page(cells, tolerances, command, figure_path=None):
         f"{DEFAULT_TOLERANCE:g}, and the target reads: at h = 1 ms the tendon adds no error to the muscle's own "
         f"(a compliant tendon's error at most {worst_versus:.3f}× the rigid option's, which is HillMuscle1D's at "
         "the same tolerance), for every tendon stiffness and without a step-size reduction; the absolute 1e-3 F0 "
-        f"is reached by the caller's `substep_tolerance` ({TIGHT_TOLERANCE:g} above; the scan at h = 1 ms of "
-        "commit 4ca0609 gave 5.6e-4 F0 at 2e-5, 7.2e-4 at 3e-5, 1.04e-3 at 5e-5 and 1.38e-3 at 1e-4). Not the "
+        f"is reached by the caller's `substep_tolerance` ({TIGHT_TOLERANCE:g} above; a scan at h = 1 ms, in "
+        "BENCHMARKS.md, gave 5.6e-4 F0 at 2e-5, 7.2e-4 at 3e-5, 1.04e-3 at 5e-5 and 1.38e-3 at 1e-4). Not the "
         "default because of its cost where the fibres move: on a 2 Hz ±10 % stretch at h = 1 ms, 2e-5 takes "
-        "~7.8 pieces per step, 12.85× HillMuscle1D's step against the issue's 1.5× (BENCHMARKS.md). A tight "
+        "~7.8 pieces per step, 12.85× HillMuscle1D's step (BENCHMARKS.md). A tight "
         "tolerance keeps long stiff steps under control: the work bound of a step grows as the tolerance's "
-        "inverse square root (it was 10,000 tries at any tolerance, and at 2e-5 a 0.1 s step after a jump of "
-        "path and command ran out of tries and took its rest in one uncontrolled piece, 9.4e-2 sigma0 from its "
-        "h/100 run in the stability matrix).", ""]
+        "inverse square root, so that a 0.1 s step after a jump of path and command does not run out of "
+        "tries and take its rest in one uncontrolled piece.", ""]
     if figure_path is not None:
         rel = figure_path.relative_to(PAGE.parent) if figure_path.is_relative_to(PAGE.parent) else figure_path
         lines += [f"![Force error against h, per program and tolerance]({rel})", ""]

@@ -11,7 +11,9 @@
 //!   [`MAX_GROWTH`];
 //! - a rejected piece is tried again shorter by [`reduction`], at most
 //!   [`SAFETY`], or by the model's own floor when the estimate is not finite;
-//! - after [`MAX_CONTROLLED_TRIES`] tries the rest of the step is one piece.
+//! - after [`MAX_CONTROLLED_TRIES`] tries the rest of the step is one piece
+//!   (the 1D muscle grows that bound below its default tolerance:
+//!   `crate::muscle1d::step::max_tries`).
 //!
 //! The muscles only place the pieces: the 1D muscle on a dyadic grid of the
 //! step (`crate::muscle1d`), the FE muscle continuously with a floor of 1/4
