@@ -624,7 +624,8 @@ pub fn explain(message: &str) -> Option<&'static str> {
              inputs, up to 64 substeps, within its work budget) could not take the step's input change — \
              a length jump, the compression of the slender clamped specimen towards stretch 0.3, an \
              activation jump with S h >> 1 at the kink of f_v, mostly at D <= 1e-9 — and refused it \
-             with fmi2Discard, its state unchanged (issue 3's contract); the message names the last \
+             with fmi2Discard, its state unchanged (the discard contract of \
+             docs/reference/bad-input.md); the message names the last \
              failure, and the master's retry in smaller pieces completes most such steps",
         ),
     ];
