@@ -55,7 +55,6 @@ use hill_muscle::fe::step_map::{discretization, StepLevel};
 use hill_muscle::law::Params;
 use hill_muscle::specimen::MEAN_AREA;
 
-use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::Model;
 use hill_muscle::fmus::hillfe::HillFE;
 use hill_muscle::specimen::LENGTH as L0;
@@ -117,7 +116,7 @@ fn run(api: &cabi::Api, inputs: Inputs, h: f64, duration: f64) -> (Vec<f64>, Vec
     let ins = [vr_of("activation"), vr_of("length")];
     let outs = [vr_of("force")];
     let solves_vr = vr_of("newton_iterations");
-    let instance = Instance::new(api, &guid::<HillFE>());
+    let instance = Instance::new(api, &api.guid);
     let steps = (duration / h).round() as usize;
     let (mut times, mut solves) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     let mut force = [0.0];
@@ -152,7 +151,7 @@ fn init(api: &cabi::Api) -> f64 {
         (vr_of("activation"), 1.0),
     ];
     let t = Instant::now();
-    let instance = Instance::with_parameters(api, &guid::<HillFE>(), &level_1);
+    let instance = Instance::with_parameters(api, &api.guid, &level_1);
     let s = t.elapsed().as_secs_f64();
     drop(instance);
     s

@@ -23,7 +23,6 @@
 use std::ffi::c_uint;
 use std::time::Instant;
 
-use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::Model;
 use hill_muscle::fmus::hill1d::{Hill1D, Var as Var1D, DEFAULT_L0};
 use hill_muscle::fmus::musculotendon1d::{Musculotendon, Var as VarMt};
@@ -102,7 +101,7 @@ fn vr<M: Model>(name: &str) -> c_uint {
 fn time_fmi(case: Case, api: &Api, steps: usize, h: f64) -> (f64, f64) {
     let (instance, ins, outs) = match case.tendon {
         None => (
-            Instance::new(api, &guid::<Hill1D>()),
+            Instance::new(api, &api.guid),
             [vr::<Hill1D>("activation"), vr::<Hill1D>("length")],
             [vr::<Hill1D>("force"), vr::<Hill1D>("stress")],
         ),
@@ -114,12 +113,7 @@ fn time_fmi(case: Case, api: &Api, steps: usize, h: f64) -> (f64, f64) {
                 reals.push((vr::<Musculotendon>("substep_tolerance"), tol));
             }
             (
-                Instance::with_settings(
-                    api,
-                    &guid::<Musculotendon>(),
-                    &reals,
-                    &[(compliant, t.is_some())],
-                ),
+                Instance::with_settings(api, &api.guid, &reals, &[(compliant, t.is_some())]),
                 [
                     vr::<Musculotendon>("activation"),
                     vr::<Musculotendon>("length"),

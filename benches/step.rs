@@ -12,7 +12,6 @@
 use std::ffi::c_uint;
 use std::time::Instant;
 
-use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::Model;
 use hill_muscle::fmus::hill1d::{Hill1D, Var, DEFAULT_L0};
 
@@ -44,7 +43,7 @@ fn vr_of(name: &str) -> c_uint {
 fn time_fmi(api: &Api) -> (f64, f64) {
     let inputs_vr = [vr_of("activation"), vr_of("length")];
     let outputs_vr = [vr_of("force"), vr_of("stress")];
-    let instance = Instance::new(api, &guid::<Hill1D>());
+    let instance = Instance::new(api, &api.guid);
     let mut out = [0.0; 2];
     let mut checksum = 0.0;
     let start = Instant::now();

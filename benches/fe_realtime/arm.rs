@@ -16,8 +16,6 @@ use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::step_map::{
     discretization, end_length, rate_step, Committed, LastStep, Quantity, StepLevel, Substepped,
 };
-use hill_muscle::fmi2::model_description::guid;
-use hill_muscle::fmus::hillfe::HillFE;
 use hill_muscle::law::activation::Decay;
 use hill_muscle::law::Params;
 use testkit::cabi::{Api, Instance};
@@ -117,7 +115,7 @@ pub fn cabi(api: &Api, trace: &Trace) -> Replayed {
         trace.params.iter().map(|(n, v)| (vr_of(n), *v)).collect();
     settings.push((vr_of("length"), trace.length0));
     settings.push((vr_of("activation"), 0.0));
-    let instance = Instance::with_parameters(api, &guid::<HillFE>(), &settings);
+    let instance = Instance::with_parameters(api, &api.guid, &settings);
     let c = instance.c;
     let (length, activation, force) = (vr_of("length"), vr_of("activation"), vr_of("force"));
     let outs = [force, vr_of("activation_level"), vr_of("fibre_stretch")];

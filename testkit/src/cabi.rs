@@ -52,6 +52,9 @@ type GetDirectionalDerivative = unsafe extern "C" fn(
 /// The functions a co-simulation loop calls.
 pub struct Api {
     _lib: *mut c_void,
+    /// The GUID of the FMU's modelDescription.xml, as an importer passes it
+    /// (an older build under `HM_DIST` has its own).
+    pub guid: String,
     pub instantiate: Instantiate,
     pub setup: Setup,
     pub enter_init: Comp,
@@ -73,7 +76,8 @@ unsafe fn sym<T: Copy>(lib: *mut c_void, name: &str) -> T {
     std::mem::transmute_copy(&p)
 }
 
-fn extract_binary(id: &str) -> PathBuf {
+/// The binary of `<id>.fmu` extracted to a temporary file, and the FMU's GUID.
+fn extract_binary(id: &str) -> (PathBuf, String) {
     // This crate sits one level below the repository's top level.
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -85,6 +89,17 @@ fn extract_binary(id: &str) -> PathBuf {
     let file = std::fs::File::open(&fmu)
         .unwrap_or_else(|e| panic!("{}: {e} (run scripts/build_fmus.sh first)", fmu.display()));
     let mut zip = zip::ZipArchive::new(file).expect("FMU is a zip archive");
+    let mut xml = String::new();
+    zip.by_name("modelDescription.xml")
+        .expect("modelDescription.xml in the FMU")
+        .read_to_string(&mut xml)
+        .unwrap();
+    let guid = xml
+        .split("guid=\"")
+        .nth(1)
+        .and_then(|rest| rest.split('"').next())
+        .expect("a guid attribute in modelDescription.xml")
+        .to_string();
     let mut entry = zip
         .by_name(&format!("binaries/linux64/{id}.so"))
         .expect("linux64 binary in the FMU");
@@ -92,12 +107,12 @@ fn extract_binary(id: &str) -> PathBuf {
     entry.read_to_end(&mut bytes).unwrap();
     let out = std::env::temp_dir().join(format!("{id}-bench-{}.so", std::process::id()));
     std::fs::write(&out, bytes).unwrap();
-    out
+    (out, guid)
 }
 
 /// dlopen the binary of `dist/<id>.fmu` (or `$HM_DIST/<id>.fmu`).
 pub fn load(id: &str) -> Api {
-    let path = extract_binary(id);
+    let (path, guid) = extract_binary(id);
     let c = CString::new(path.to_str().unwrap()).unwrap();
     unsafe {
         let lib = libc::dlopen(c.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL);
@@ -111,6 +126,7 @@ pub fn load(id: &str) -> Api {
         }
         Api {
             _lib: lib,
+            guid,
             instantiate: sym(lib, "fmi2Instantiate"),
             setup: sym(lib, "fmi2SetupExperiment"),
             enter_init: sym(lib, "fmi2EnterInitializationMode"),
