@@ -26,10 +26,10 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use hill_muscle::fe::assembly::FactorKind;
-use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
-use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
+use hill_muscle::fe::mesh::{LUMPED, LUMPED_GRADING};
+use hill_muscle::fe::muscle::{Discretization, Muscle};
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
-use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
+use hill_muscle::specimen::LENGTH as L0;
 
 use cabi::median;
 use testkit::cabi;
@@ -41,17 +41,7 @@ fn main() {
         .position(|a| a == "--runs")
         .map_or(3, |i| args[i + 1].parse().expect("--runs N"));
     let p = Params::default();
-    let d = Arc::new(
-        Discretization::fusiform_graded(
-            L0,
-            MEAN_AREA,
-            LUMPED,
-            LUMPED_GRADING,
-            FibreLayout::Axial,
-            Ends::Clamped,
-        )
-        .unwrap(),
-    );
+    let d = Arc::new(Discretization::specimen(LUMPED).unwrap());
     let (rest, _) = Muscle::isometric(d.clone(), &p, L0, 0.0).unwrap();
     let start = vec![FibreHistory::REST; d.n_elements()];
     println!(

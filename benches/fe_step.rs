@@ -28,9 +28,8 @@ use std::ffi::c_uint;
 use std::sync::Arc;
 use std::time::Instant;
 
-use hill_muscle::fe::mesh::{FibreLayout, Resolution, LUMPED, LUMPED_GRADING};
-use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
-use hill_muscle::fmi2::model_description::guid;
+use hill_muscle::fe::mesh::{Resolution, LUMPED, LUMPED_GRADING};
+use hill_muscle::fe::muscle::{Discretization, Muscle};
 use hill_muscle::fmi2::Model;
 use hill_muscle::fmus::hillfe::HillFE;
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
@@ -71,7 +70,7 @@ fn run_cabi(
     let ins = [vr_of("activation"), vr_of("length")];
     let outs = [vr_of("force"), vr_of("stress")];
     let parameters: Vec<(c_uint, f64)> = parameters.iter().map(|&(n, v)| (vr_of(n), v)).collect();
-    let instance = Instance::with_parameters(api, &guid::<HillFE>(), &parameters);
+    let instance = Instance::with_parameters(api, &api.guid, &parameters);
     let mut out = [0.0; 2];
     let mut times = Vec::with_capacity(steps);
     let mut solves = Vec::with_capacity(steps);
@@ -156,17 +155,7 @@ fn peak_rss_mib() -> f64 {
 
 fn mesh_row(res: Resolution) {
     let p = Params::default();
-    let d = Arc::new(
-        Discretization::fusiform_graded(
-            L0,
-            MEAN_AREA,
-            res,
-            LUMPED_GRADING,
-            FibreLayout::Axial,
-            Ends::Clamped,
-        )
-        .unwrap(),
-    );
+    let d = Arc::new(Discretization::specimen(res).unwrap());
     let (mut m, _) = Muscle::isometric(d.clone(), &p, L0, 0.0).unwrap();
     let steps = 2000;
     let (mut solves, mut residuals, mut factorizations) = (0, 0, 0);

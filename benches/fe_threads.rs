@@ -19,11 +19,11 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use hill_muscle::fe::mesh::{FibreLayout, Resolution, LUMPED, LUMPED_GRADING};
-use hill_muscle::fe::muscle::{Discretization, Ends, Muscle};
+use hill_muscle::fe::mesh::{Resolution, LUMPED};
+use hill_muscle::fe::muscle::{Discretization, Muscle};
 use hill_muscle::fe::threads::Threads;
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
-use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
+use hill_muscle::specimen::LENGTH as L0;
 
 const H: f64 = 1e-3;
 /// Tetrahedra of the default mesh.
@@ -105,17 +105,7 @@ fn unit<T>(n: usize, mut f: impl FnMut() -> T) -> f64 {
 }
 
 fn mesh(res: Resolution, threads: Threads, repeats: usize) {
-    let d = Arc::new(
-        Discretization::fusiform_graded(
-            L0,
-            MEAN_AREA,
-            res,
-            LUMPED_GRADING,
-            FibreLayout::Axial,
-            Ends::Clamped,
-        )
-        .unwrap(),
-    );
+    let d = Arc::new(Discretization::specimen(res).unwrap());
     let p = Params::default();
     let counts = [Threads::ONE, threads];
     let label = |t: Threads| t.get();

@@ -114,6 +114,21 @@ impl Discretization {
         Self::fusiform_graded(l0, area, resolution, Grading::UNIFORM, fibres, ends)
     }
 
+    /// The specimen (MODEL_NOTES "Experiments": [`crate::specimen::LENGTH`],
+    /// [`crate::specimen::MEAN_AREA`]) as the FMUs mesh it, at `resolution`:
+    /// graded by [`crate::fe::mesh::LUMPED_GRADING`], axial fibres, ends
+    /// clamped.
+    pub fn specimen(resolution: Resolution) -> Result<Discretization, String> {
+        Self::fusiform_graded(
+            crate::specimen::LENGTH,
+            crate::specimen::MEAN_AREA,
+            resolution,
+            crate::fe::mesh::LUMPED_GRADING,
+            FibreLayout::Axial,
+            Ends::Clamped,
+        )
+    }
+
     /// [`Discretization::fusiform`] with the slices graded toward the end
     /// faces and the rings toward the lateral surface ([`Grading`]).
     pub fn fusiform_graded(

@@ -265,7 +265,7 @@ mod tests {
     use super::*;
     use crate::fe::assembly::FactorKind;
     use crate::fe::discretization::{Discretization, Ends};
-    use crate::fe::mesh::{FibreLayout, Resolution, LUMPED, LUMPED_GRADING};
+    use crate::fe::mesh::{FibreLayout, Resolution, LUMPED};
     use crate::fe::muscle::Muscle;
     use crate::law::{FibreHistory, FibreRate, Params};
     use crate::specimen::{LENGTH as L0, MEAN_AREA};
@@ -298,17 +298,7 @@ mod tests {
 
     /// The default (lumped, graded) mesh.
     fn default_mesh() -> Arc<Discretization> {
-        Arc::new(
-            Discretization::fusiform_graded(
-                L0,
-                MEAN_AREA,
-                LUMPED,
-                LUMPED_GRADING,
-                FibreLayout::Axial,
-                Ends::Clamped,
-            )
-            .unwrap(),
-        )
+        Arc::new(Discretization::specimen(LUMPED).unwrap())
     }
 
     /// The default mesh, and its passive equilibrium at 1.1 L0.
