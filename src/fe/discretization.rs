@@ -379,7 +379,7 @@ impl Discretization {
         let mut d_activation = vec![0.0; 3 * nn];
         let mut values = self.pattern.zeros();
         let mut elements = Vec::with_capacity(ne);
-        let kernel = |e: usize| {
+        let kernel = |e: usize| -> TangentElement {
             let tet = &self.mesh.tets[e];
             let pts = self.element_points(x, e);
             let reference = &self.references[e];
@@ -595,7 +595,7 @@ impl Discretization {
         let mut forces = vec![0.0; 3 * nn];
         let mut elements = Vec::with_capacity(ne);
         let mut volume = 0.0;
-        let kernel = |e: usize| {
+        let kernel = |e: usize| -> ResidualElement {
             let tet = &self.mesh.tets[e];
             let (f, j) = deformation[e];
             let reference = &self.references[e];
@@ -765,6 +765,21 @@ pub struct VolumeRatioSpread {
     pub share_over: f64,
 }
 
+/// One element's share of a tangent evaluation as its loop hands it to the
+/// scatter: nodal forces, state, nodal ∂f/∂a and the 12 × 12 stiffness. A
+/// worker thread buffers its chunk of these ([`crate::fe::threads`]), which
+/// the memory estimate covers ([`crate::fe::memory::THREAD_BUFFER_BYTES_PER_ELEMENT`]).
+pub(crate) type TangentElement = (
+    [Vector3<f64>; 4],
+    ElementState,
+    [Vector3<f64>; 4],
+    SMatrix<f64, 12, 12>,
+);
+
+/// One element's share of a residual evaluation: nodal forces, state and
+/// current volume (buffered as [`TangentElement`]).
+pub(crate) type ResidualElement = ([Vector3<f64>; 4], ElementState, f64);
+
 /// What an evaluation keeps per element for outputs and commits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ElementState {
@@ -876,5 +891,14 @@ mod tests {
             let fd = (fp[i] - fm[i]) / (2.0 * ea);
             assert!((fd - ev.d_activation[i]).abs() < 1e-6 * amax, "df/da[{i}]");
         }
+    }
+
+    /// A worker thread's buffer per element fits the memory estimate's
+    /// allowance for it.
+    #[test]
+    fn the_thread_buffers_fit_the_memory_estimate() {
+        let allowance = crate::fe::memory::THREAD_BUFFER_BYTES_PER_ELEMENT;
+        assert!(std::mem::size_of::<TangentElement>() as f64 <= allowance);
+        assert!(std::mem::size_of::<ResidualElement>() as f64 <= allowance);
     }
 }

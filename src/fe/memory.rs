@@ -21,7 +21,8 @@
 //! the LBLᵀ values, and the reused tangent keeps the previous factor while
 //! a new one is computed: the estimate is two LU factors, plus the assembly
 //! arrays (a few copies of the tangent's nonzeros, at most
-//! [`NONZEROS_PER_NODE`] per node) and the mesh. Invariant: the estimate is
+//! [`NONZEROS_PER_NODE`] per node), the mesh and the element results the
+//! worker threads buffer ([`THREAD_BUFFER_BYTES_PER_ELEMENT`]). Invariant: the estimate is
 //! at least the peak resident memory measured on every mesh it was checked
 //! against (docs/reference/bad-input.md).
 
@@ -46,6 +47,10 @@ const TANGENT_COPIES: f64 = 6.0;
 /// Bytes per tetrahedron of the mesh and its per-element state (positions,
 /// gradients, histories, patches), a generous bound.
 const BYTES_PER_ELEMENT: f64 = 2048.0;
+/// Bytes per tetrahedron the element loops' worker threads buffer until the
+/// scatter (the tangent's forces, state and 12 × 12 stiffness, 1,416 bytes):
+/// counted for every element, as the thread count is tunable.
+pub const THREAD_BUFFER_BYTES_PER_ELEMENT: f64 = 1536.0;
 
 /// The memory budget of one FE muscle: 12 GiB, half the 24 GiB of the
 /// project's reference machine, leaving the other half to the importer.
@@ -62,11 +67,11 @@ pub fn factor_values(r: Resolution) -> f64 {
 }
 
 /// Bytes at the peak of a step of a muscle meshed at `r` (module docs): two
-/// LU factorisations, the assembly arrays and the mesh.
+/// LU factorisations, the assembly arrays, the mesh and the threads' buffers.
 pub fn estimate(r: Resolution) -> u64 {
     let factor = 8.0 * factor_values(r) * LU_RATIO;
     let tangent = 8.0 * TANGENT_COPIES * NONZEROS_PER_NODE * r.nodes() as f64;
-    let mesh = BYTES_PER_ELEMENT * r.tets() as f64;
+    let mesh = (BYTES_PER_ELEMENT + THREAD_BUFFER_BYTES_PER_ELEMENT) * r.tets() as f64;
     // Saturating: a resolution far out of any range gives u64::MAX.
     (2.0 * factor + tangent + mesh) as u64
 }

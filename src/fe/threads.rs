@@ -78,13 +78,17 @@ where
     let bound = |t: usize| t * n / threads;
     std::thread::scope(|s| {
         let kernel = &kernel;
-        // A thread the OS refuses (process limits) leaves its chunk to the
-        // calling thread: the same results, in the same order.
+        // A thread the OS refuses (process limits), or whose buffer cannot
+        // be allocated, leaves its chunk to the calling thread: the same
+        // results, in the same order.
         let workers: Vec<_> = (1..threads)
             .map(|t| {
                 std::thread::Builder::new()
                     .spawn_scoped(s, move || {
-                        (bound(t)..bound(t + 1)).map(kernel).collect::<Vec<T>>()
+                        let range = bound(t)..bound(t + 1);
+                        let mut results = buffer::<T>(range.len())?;
+                        results.extend(range.map(kernel));
+                        Some(results)
                     })
                     .ok()
             })
@@ -93,11 +97,12 @@ where
             sink(e, kernel(e));
         }
         for (t, worker) in (1..threads).zip(workers) {
-            match worker {
-                Some(w) => {
-                    let results = w
-                        .join()
-                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            let results = worker.and_then(|w| {
+                w.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            });
+            match results {
+                Some(results) => {
                     for (e, r) in (bound(t)..).zip(results) {
                         sink(e, r);
                     }
@@ -112,9 +117,25 @@ where
     });
 }
 
+/// An empty vector with room for `len` results, or `None` when it cannot be
+/// allocated (never an abort).
+fn buffer<T>(len: usize) -> Option<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).ok()?;
+    Some(v)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A buffer too large to allocate is refused, not an abort (its chunk
+    /// then runs on the calling thread).
+    #[test]
+    fn a_buffer_that_cannot_be_allocated_is_refused() {
+        assert!(buffer::<[u8; 1 << 20]>(1 << 44).is_none());
+        assert_eq!(buffer::<f64>(3).map(|v| v.capacity()), Some(3));
+    }
 
     /// Every index reaches the sink once, in order, for any split; a sum
     /// formed by the sink is the same bits for every thread count.
