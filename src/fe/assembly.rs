@@ -39,7 +39,10 @@
 //! instead of faer sorting and permuting the whole matrix, to the same bits.
 //! For Newton's directions the same Cholesky factorisation in single
 //! precision is taken where it is adequate for the matrix, the f64 one
-//! otherwise ([`Pattern::factorize_direction`], module `cholesky`).
+//! otherwise ([`Pattern::factorize_direction`], module `cholesky`). A
+//! system with a tangent close to one already factorised is solved by
+//! conjugate gradients with that factor as the preconditioner
+//! ([`Pattern::conjugate_gradients`], module `pcg`).
 
 use std::sync::{Arc, OnceLock};
 
@@ -57,7 +60,9 @@ use faer::{MatMut, Side};
 use nalgebra::{Matrix3, SMatrix};
 
 mod cholesky;
+mod pcg;
 pub use cholesky::{Cholesky, Precision, MAX_SINGLE_ERROR};
+pub use pcg::{dot, Iterate};
 
 /// The node-level sparsity of the tangent and the scatter positions.
 #[derive(Debug)]

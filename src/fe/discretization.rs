@@ -7,7 +7,9 @@
 //! Entry points: [`Discretization::fusiform`] (the paper's specimen) or
 //! [`Discretization::new`] (any mesh); [`Discretization::evaluate`];
 //! [`Discretization::reaction`] (the muscle force) and its derivatives
-//! [`Discretization::force_derivatives`], [`Discretization::sensitivities`].
+//! [`Discretization::force_derivatives`] (or with a nearby tangent's factor,
+//! [`Discretization::force_derivatives_preconditioned`]),
+//! [`Discretization::sensitivities`].
 //!
 //! Invariants: a discretization is fixed once built (but for its thread
 //! count, [`Discretization::set_threads`], which changes no result) and
@@ -33,7 +35,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
-use crate::fe::assembly::{Factor, Pattern};
+use crate::fe::assembly::{dot, try_filled, Factor, Pattern};
 use crate::fe::element::{nodal_volumes, IsochoricElement, TetReference};
 use crate::fe::mesh::{revolve_graded, FibreLayout, Fusiform, Grading, Mesh, Resolution, Section};
 use crate::fe::threads::{
@@ -62,6 +64,33 @@ pub enum Volumetric {
     /// constraint per element. Locks when nearly incompressible; kept to
     /// show that (docs/fe.md, verification item 2).
     Element,
+}
+
+/// Iterations each solve of [`Discretization::force_derivatives_preconditioned`]
+/// may take before the derivatives fall back to a factorisation of their
+/// own: with Newton's reused factor (contracting by ≤ 1/4) CG gains about
+/// a factor 10 per iteration, so a solve that has not converged in this
+/// many has a preconditioner too far from the tangent to pay.
+pub const DERIVATIVE_ITERATIONS: usize = 30;
+
+/// The stopping test of [`Discretization::force_derivatives_preconditioned`]:
+/// its estimate of each derivative's error (the product of the energy-norm
+/// errors of the solves it takes, each estimated by rᵀK̃⁻¹r) at most this ×
+/// the derivative. rᵀK̃⁻¹r is rᵀK⁻¹r to within the extreme eigenvalues of
+/// K̃⁻¹K_ff, 1 ± O(θ) for a reused tangent contracting by θ ≤ 1/4; this
+/// leaves a factor 100 for an eigenvalue down to 0.01, so the derivatives
+/// are those of the exact factorisation to ≤ 1e-9 relative (far below the
+/// 1e-5 to which they match finite differences of the step map).
+pub const DERIVATIVE_TOLERANCE: f64 = 1e-11;
+
+/// (dF/dL, dF/da) by preconditioned conjugate gradients
+/// ([`Discretization::force_derivatives_preconditioned`]) and the
+/// iterations each of the two solves took.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IterativeDerivatives {
+    pub length: f64,
+    pub activation: f64,
+    pub iterations: [usize; 2],
 }
 
 /// Everything fixed once the geometry, mesh and boundary conditions are
@@ -544,6 +573,63 @@ impl Discretization {
         self.pattern.multiply(values, &w, &mut kx);
         let df_da = self.reaction(&ev.d_activation) + self.reaction(&kx);
         Ok((df_dl, df_da))
+    }
+
+    /// [`Self::force_derivatives`] without a factorisation: the two solves
+    /// by conjugate gradients preconditioned with `factor`, the Cholesky
+    /// factor of a nearby tangent ([`Pattern::conjugate_gradients`]), at
+    /// most `cap` iterations each; `None` when either gives up. With
+    /// b_L = (K δ)_f, b_a = (∂f/∂a)_f, y_L ≈ K_ff⁻¹ b_L, y_a ≈ K_ff⁻¹ b_a
+    /// and their residuals r_L, r_a:
+    /// dF/dL = eᵀK δ − (b_Lᵀ y_L + y_Lᵀ r_L),
+    /// dF/da = eᵀ∂f/∂a − (b_Lᵀ y_a + y_Lᵀ r_a) —
+    /// b_Lᵀ K_ff⁻¹ b_L and b_Lᵀ K_ff⁻¹ b_a each with its adjoint correction,
+    /// so that their errors are (y_L − y_L*)ᵀ K (y − y*), the product of the
+    /// two solves' energy-norm errors, each estimated by the iteration's
+    /// rᵀK̃⁻¹r ([`DERIVATIVE_TOLERANCE`]).
+    pub fn force_derivatives_preconditioned(
+        &self,
+        ev: &Evaluation,
+        factor: &Factor,
+        cap: usize,
+    ) -> Result<Option<IterativeDerivatives>, String> {
+        let values = ev.tangent.as_ref().ok_or("no tangent")?;
+        let mut delta = try_filled(3 * self.n_nodes(), 0.0, "the derivatives' vectors")?;
+        for &d in &self.moved_axial {
+            delta[d] = 1.0;
+        }
+        let mut kd = try_filled(delta.len(), 0.0, "the derivatives' vectors")?;
+        self.pattern.multiply(values, &delta, &mut kd);
+        let (direct_l, direct_a) = (self.reaction(&kd), self.reaction(&ev.d_activation));
+        // b_L: K δ on the free dofs (the solver reads b there only).
+        for (k, &pr) in kd.iter_mut().zip(&self.pattern.prescribed) {
+            if pr {
+                *k = 0.0;
+            }
+        }
+        let b_l = kd;
+        let length = |y: &[f64], r: &[f64]| direct_l - (dot(&b_l, y) + dot(y, r));
+        let pattern = &self.pattern;
+        let tol = DERIVATIVE_TOLERANCE;
+        let Some(l) = pattern.conjugate_gradients(values, factor, &b_l, cap, |y, r, rz| {
+            rz <= tol * length(y, r).abs()
+        })?
+        else {
+            return Ok(None);
+        };
+        let activation = |y: &[f64], r: &[f64]| direct_a - (dot(&b_l, y) + dot(&l.y, r));
+        let Some(a) =
+            pattern.conjugate_gradients(values, factor, &ev.d_activation, cap, |y, r, rz| {
+                rz * l.energy <= (tol * activation(y, r)).powi(2)
+            })?
+        else {
+            return Ok(None);
+        };
+        Ok(Some(IterativeDerivatives {
+            length: length(&l.y, &l.residual),
+            activation: activation(&a.y, &a.residual),
+            iterations: [l.iterations, a.iterations],
+        }))
     }
 
     /// The forces alone ([`Self::evaluate`] without the tangent), in the

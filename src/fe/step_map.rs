@@ -18,7 +18,7 @@
 use std::fmt;
 use std::sync::{Arc, OnceLock};
 
-use crate::fe::discretization::{Discretization, Ends, Evaluation};
+use crate::fe::discretization::{Discretization, Ends, Evaluation, DERIVATIVE_ITERATIONS};
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::muscle::Muscle;
 use crate::law::activation::{level_at, Decay};
@@ -269,6 +269,9 @@ fn difference_columns(
     })
 }
 
+/// (dF/dL, dF/da) at a committed state.
+type ForceDerivatives = (f64, f64);
+
 /// Why a step was refused (the committed state unchanged).
 #[derive(Clone, Debug, PartialEq)]
 pub enum StepFailure {
@@ -431,9 +434,9 @@ impl Committed {
     }
 
     /// (dF/dL, dF/du) of the last step's map at the committed state (u the
-    /// activation command): from the converged tangent (one factorisation
-    /// and two solves, [`Discretization::force_derivatives`]; dF/du =
-    /// dF/da · ∂a/∂u), or for a step that took substeps by central
+    /// activation command): for a step in one piece from the exact tangent
+    /// at the committed state ([`Self::tangent_derivatives`]; dF/du =
+    /// dF/da · ∂a/∂u), for a step that took substeps by central
     /// differences of its map ([`Self::output_jacobian`]). `l0` scales the
     /// length differences, `area` the stresses.
     pub fn force_derivatives(&self, p: &Params, l0: f64, area: f64) -> Result<(f64, f64), String> {
@@ -446,14 +449,43 @@ impl Committed {
                     let force = jacobian[Quantity::Force as usize];
                     return Ok((force[0], force[1]));
                 }
-                let (m, last) = (&self.muscle, &self.last);
-                let ev =
-                    m.disc
-                        .evaluate(p, &m.x, last.activation, &last.start, last.rate(), true)?;
-                let (dl, da) = m.disc.force_derivatives(&ev)?;
-                Ok((dl, da * last.da_du))
+                let ((dl, da), _) = self.tangent_derivatives(p, DERIVATIVE_ITERATIONS)?;
+                Ok((dl, da * self.last.da_du))
             })
             .clone()
+    }
+
+    /// (dF/dL, dF/da) from the exact tangent at the committed state, and
+    /// the iterations of its two conjugate-gradient solves (`None`: it was
+    /// factorised). After a step, the solves are preconditioned with the
+    /// step's latest Newton factor (the muscle's tangent cache, formed from
+    /// its anchor when a restored state has not formed it yet, to the same
+    /// bits) when it is a Cholesky factor, at most `cap` iterations each
+    /// ([`Discretization::force_derivatives_preconditioned`], to ≤ 1e-9
+    /// relative of the factorisation's result). Otherwise — no factor, an
+    /// indefinite one, CG not converging, or an initialization, whose
+    /// derivatives the musculotendon unit's equilibrium and predictor take
+    /// as Newton's slope — the tangent's own factorisation
+    /// ([`Discretization::force_derivatives`]).
+    pub(crate) fn tangent_derivatives(
+        &self,
+        p: &Params,
+        cap: usize,
+    ) -> Result<(ForceDerivatives, Option<[usize; 2]>), String> {
+        let (m, last) = (&self.muscle, &self.last);
+        let ev = m
+            .disc
+            .evaluate(p, &m.x, last.activation, &last.start, last.rate(), true)?;
+        let factor = match (&m.tangent, last.h) {
+            (Some(cache), Some(_)) => cache.tangent(&m.disc, p).ok().map(|t| &t.factor),
+            _ => None,
+        };
+        if let Some(factor) = factor {
+            if let Some(d) = m.disc.force_derivatives_preconditioned(&ev, factor, cap)? {
+                return Ok(((d.length, d.activation), Some(d.iterations)));
+            }
+        }
+        Ok((m.disc.force_derivatives(&ev)?, None))
     }
 
     /// ∂(output)/∂(length, command) of the last step's map for every
@@ -579,4 +611,269 @@ fn step_map_jacobian(
         (&more, &less, hi - lo),
         1.0,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fe::mesh::{LUMPED, LUMPED_GRADING};
+    use crate::fe::tangent::TangentCache;
+    use crate::specimen::{LENGTH as L0, MEAN_AREA};
+
+    /// The default mesh (its Newton factors in single precision when
+    /// `single`, else f64), the passive equilibrium at L0, then `steps`
+    /// steps of 10 ms stretching 0.5 % each under the command `command`
+    /// (activation dynamics on).
+    fn stepped(command: f64, steps: usize, single: bool) -> Committed {
+        let p = Params::default();
+        let mut d = Discretization::fusiform_graded(
+            L0,
+            MEAN_AREA,
+            LUMPED,
+            LUMPED_GRADING,
+            FibreLayout::Axial,
+            Ends::Clamped,
+        )
+        .unwrap();
+        d.pattern.set_single_precision(single);
+        let mut state = Committed::initialize(Arc::new(d), &p, MEAN_AREA, L0, 0.0, 0.0)
+            .unwrap()
+            .state;
+        let h = 10e-3;
+        let decay = Decay::new(p.s, h).value;
+        for k in 1..=steps {
+            let level = StepLevel::new(true, p.s, state.last.activation, command, 0.0, h, decay);
+            let length = L0 * (1.0 + 0.005 * k as f64);
+            state = state
+                .step(&p, MEAN_AREA, level, length, None)
+                .unwrap()
+                .state;
+        }
+        assert!(state.substepped.is_none());
+        state
+    }
+
+    /// (dF/dL, dF/da) of `s` by the factorisation of its exact tangent.
+    fn factorised(s: &Committed, p: &Params) -> (f64, f64) {
+        let (m, last) = (&s.muscle, &s.last);
+        let ev = m
+            .disc
+            .evaluate(p, &m.x, last.activation, &last.start, last.rate(), true)
+            .unwrap();
+        m.disc.force_derivatives(&ev).unwrap()
+    }
+
+    /// On the default mesh after passive and activating 10 ms steps, with
+    /// Newton's factor in single and in double precision, the derivatives
+    /// by conjugate gradients preconditioned with the step's factor are
+    /// the factorisation's to 1e-9 relative.
+    #[test]
+    fn the_preconditioned_derivatives_are_the_factorisations() {
+        let p = Params::default();
+        for single in [true, false] {
+            for command in [0.0, 0.5] {
+                let s = stepped(command, 3, single);
+                let ((dl, da), iterations) =
+                    s.tangent_derivatives(&p, DERIVATIVE_ITERATIONS).unwrap();
+                let (el, ea) = factorised(&s, &p);
+                let kind = s
+                    .muscle
+                    .tangent
+                    .as_ref()
+                    .unwrap()
+                    .tangent(&s.muscle.disc, &p);
+                println!(
+                    "level {:.3}, {:?}: iterations {iterations:?}, dF/dL {dl} vs {el} ({:e}), dF/da {da} vs {ea} ({:e})",
+                    s.last.activation,
+                    kind.unwrap().factor.kind(),
+                    (dl - el) / el,
+                    (da - ea) / ea
+                );
+                assert!(iterations.is_some(), "the step's factor preconditions");
+                assert!(((dl - el) / el).abs() <= 1e-9, "dF/dL {dl} vs {el}");
+                assert!(((da - ea) / ea).abs() <= 1e-9, "dF/da {da} vs {ea}");
+                assert!(command == 0.0 || s.last.activation > 0.1);
+            }
+        }
+    }
+
+    /// The factorisation is taken, to its bits, when conjugate gradients
+    /// hit their cap (1 here), without a factor, and at an
+    /// initialization; a state whose factor is not formed yet (as a
+    /// restored one) forms it from its anchor, to the same bits.
+    #[test]
+    fn the_derivatives_fall_back_to_the_factorisation() {
+        let p = Params::default();
+        let s = stepped(0.5, 2, true);
+        let exact = factorised(&s, &p);
+        let bits = |d: (f64, f64)| (d.0.to_bits(), d.1.to_bits());
+        let (d, iterations) = s.tangent_derivatives(&p, 1).unwrap();
+        assert_eq!((bits(d), iterations), (bits(exact), None));
+        let with = |tangent| {
+            Committed::new(
+                Muscle {
+                    tangent,
+                    ..s.muscle.clone()
+                },
+                s.last.clone(),
+                None,
+            )
+        };
+        let (d, iterations) = with(None)
+            .tangent_derivatives(&p, DERIVATIVE_ITERATIONS)
+            .unwrap();
+        assert_eq!((bits(d), iterations), (bits(exact), None));
+        let built = s.tangent_derivatives(&p, DERIVATIVE_ITERATIONS).unwrap();
+        assert!(built.1.is_some());
+        let anchor = s.muscle.tangent.as_ref().unwrap().anchor.clone();
+        let unformed = with(Some(Arc::new(TangentCache::new(anchor))));
+        let again = unformed
+            .tangent_derivatives(&p, DERIVATIVE_ITERATIONS)
+            .unwrap();
+        assert_eq!((bits(again.0), again.1), (bits(built.0), built.1));
+        let d = s.muscle.disc.clone();
+        let init = Committed::initialize(d, &p, MEAN_AREA, 1.02 * L0, 0.0, 0.0)
+            .unwrap()
+            .state;
+        assert!(init.muscle.tangent.is_some());
+        let (d, iterations) = init.tangent_derivatives(&p, DERIVATIVE_ITERATIONS).unwrap();
+        assert_eq!((bits(d), iterations), (bits(factorised(&init, &p)), None));
+    }
+
+    /// The coupled arm's trace (`benches/data/arm_fe_implicit.csv`,
+    /// replayed as `fe_realtime`'s in-process arm) with the derivatives by
+    /// conjugate gradients and by the factorisation after every step,
+    /// alternately timed: iterations, fallbacks, largest relative
+    /// difference, mean times, force and dF/dL at the end (`cargo test
+    /// --release --lib arm_derivative_census -- --ignored --nocapture`).
+    #[test]
+    #[ignore]
+    fn arm_derivative_census() {
+        use std::time::Instant;
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/benches/data/arm_fe_implicit.csv"
+        );
+        let text = std::fs::read_to_string(path).unwrap();
+        let number = |s: &str| -> f64 { s.trim().parse().unwrap() };
+        let (mut h, mut start, mut l0, mut area, mut a) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut rows = Vec::new();
+        for line in text.lines() {
+            if let Some(c) = line.strip_prefix("# ") {
+                if let Some(v) = c.strip_prefix("H = ") {
+                    h = number(v);
+                } else if let Some(v) = c.strip_prefix("initial length = ") {
+                    start = number(v);
+                } else if let Some((name, v)) = c
+                    .strip_prefix("parameter ")
+                    .and_then(|v| v.split_once(" = "))
+                {
+                    match name {
+                        "L0" => l0 = number(v),
+                        "area" => area = number(v),
+                        "initial_activation" => a = number(v),
+                        _ => panic!("parameter {name}"),
+                    }
+                }
+            } else if !line.starts_with('t') && !line.is_empty() {
+                let v: Vec<f64> = line.split(',').map(number).collect();
+                rows.push([v[1], v[2], v[3]]);
+            }
+        }
+        let p = Params::default();
+        let d = discretization(None, l0, area, LUMPED, LUMPED_GRADING, FibreLayout::Axial).unwrap();
+        let mut state = Committed::initialize(d, &p, area, start, a, 0.0)
+            .unwrap()
+            .state;
+        let decay = Decay::new(p.s, h).value;
+        let (mut iterations, mut fallbacks, mut worst) = (Vec::new(), 0, (0.0f64, 0.0f64));
+        let mut floor = 0.0f64;
+        let (mut t_cg, mut t_exact, mut force) = (0.0, 0.0, 0.0);
+        let mut last = ((0.0, 0.0), (0.0, 0.0));
+        for (k, [length, rate, command]) in rows.iter().copied().enumerate() {
+            let level = StepLevel::new(true, p.s, a, command, 0.0, h, decay);
+            let end = end_length(length, rate, h, &p, l0).unwrap();
+            let stepped = state.step(&p, area, level, end, None).unwrap();
+            force = stepped.outputs[Quantity::Force as usize];
+            state = stepped.state;
+            a = level.end;
+            let mut timed = |cg: bool| {
+                let t = Instant::now();
+                let r = if cg {
+                    state
+                        .tangent_derivatives(&p, DERIVATIVE_ITERATIONS)
+                        .unwrap()
+                } else {
+                    (factorised(&state, &p), None)
+                };
+                let dt = t.elapsed().as_secs_f64();
+                if cg {
+                    t_cg += dt
+                } else {
+                    t_exact += dt
+                }
+                r
+            };
+            let (exact, (cg, its)) = if k % 2 == 0 {
+                let e = timed(false).0;
+                (e, timed(true))
+            } else {
+                let c = timed(true);
+                (timed(false).0, c)
+            };
+            match its {
+                Some(i) => iterations.push(i),
+                None => fallbacks += 1,
+            }
+            // The rounding floor: CG preconditioned with the exact tangent's own
+            // factor (converged at once) against the factorisation.
+            let (m, l) = (&state.muscle, &state.last);
+            let ev = m
+                .disc
+                .evaluate(&p, &m.x, l.activation, &l.start, l.rate(), true)
+                .unwrap();
+            let own = m
+                .disc
+                .pattern
+                .factorize(ev.tangent.as_ref().unwrap())
+                .unwrap();
+            if let Some(f) = m
+                .disc
+                .force_derivatives_preconditioned(&ev, &own, 30)
+                .unwrap()
+            {
+                floor = floor.max(((f.length - exact.0) / exact.0).abs());
+            }
+            worst.0 = worst.0.max(((cg.0 - exact.0) / exact.0).abs());
+            worst.1 = worst.1.max(((cg.1 - exact.1) / exact.1).abs());
+            last = (cg, exact);
+        }
+        let n = rows.len() as f64;
+        let mean = |i: usize| {
+            iterations.iter().map(|v| v[i] as f64).sum::<f64>() / iterations.len() as f64
+        };
+        let max = |i: usize| iterations.iter().map(|v| v[i]).max().unwrap_or(0);
+        println!(
+            "{} steps: CG iterations per call, length {:.2} (max {}), activation {:.2} (max {}); fallbacks {fallbacks}",
+            rows.len(),
+            mean(0),
+            max(0),
+            mean(1),
+            max(1)
+        );
+        println!(
+            "largest relative difference: dF/dL {:e}, dF/da {:e}; dF/dL with the exact factor as preconditioner {floor:e}",
+            worst.0, worst.1
+        );
+        println!(
+            "mean ms per derivative: CG {:.3}, factorisation {:.3} (ratio {:.3})",
+            t_cg / n * 1e3,
+            t_exact / n * 1e3,
+            t_cg / t_exact
+        );
+        println!(
+            "force at the end {force:.14} N; dF/dL CG {:.10}, factorised {:.10}; dF/da CG {:.10}, factorised {:.10}",
+            last.0 .0, last.1 .0, last.0 .1, last.1 .1
+        );
+    }
 }
