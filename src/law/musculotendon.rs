@@ -211,6 +211,8 @@ pub const TRUST: f64 = 0.1;
 /// Consecutive failed evaluations, each halving the step back toward the
 /// last evaluable fibre length, after which the failure is the answer: the
 /// evaluable range then ends within 2⁻¹⁶ of the first failed step from it.
+/// Also the bound of consecutive good points that approach a failed length
+/// with the root on its side ([`solve_equilibrium`]).
 pub const MAX_HALVINGS: u32 = 16;
 
 /// The tolerance of the equilibrium's residual F_M cos α − F_T.
@@ -269,14 +271,16 @@ impl Unit {
 /// needs more than the rupture strain ([`Tendon::max_strain`]) is refused
 /// as soon as it is known: before any evaluation when the strain exceeds it
 /// at the longest evaluable fibres, or at a point with R > 0 (the root is
-/// shorter) and a strain past it.
+/// shorter) and a strain past it, or at the converged point itself (at the
+/// resolution of L_M its R may be below −tol).
 ///
 /// Where the muscle cannot be evaluated (its closure fails), the evaluable
 /// lengths end between the last good point and the failed one: no later
 /// trial goes to or past a failed length (the evaluable lengths are taken
 /// to be an interval), the step back is halved toward
-/// the good point at most [`MAX_HALVINGS`] times in a row, and a failed
-/// first trial is retried once at a fallback point (the rigid tendon's
+/// the good point at most [`MAX_HALVINGS`] times in a row, at most as many
+/// good points in a row approach a failed end with the root on its side
+/// (each then the failure is the answer), and a failed first trial is retried once at a fallback point (the rigid tendon's
 /// fibre length, else the middle of the range) before the failure is
 /// returned.
 ///
@@ -375,6 +379,9 @@ where
     let (mut lo_error, mut hi_error) = (None, None);
     let mut fallback_tried = false;
     let mut halvings = 0u32;
+    // Moves in a row toward a failed end: failed trials after a good point,
+    // and good points with the root on the side of a failed end.
+    let mut approaches = 0u32;
     let mut last_move = 0.0f64;
     // 200: bisection of the evaluable range to 1 ulp takes ~60.
     for _ in 0..200 {
@@ -399,7 +406,11 @@ where
                     None => return Err(hi_error.or(lo_error).unwrap_or(e)),
                 };
                 halvings += 1;
-                if near(x, toward) || halvings > MAX_HALVINGS {
+                // A halving move toward a failed end (below).
+                if good.is_some() {
+                    approaches += 1;
+                }
+                if near(x, toward) || halvings > MAX_HALVINGS || approaches > MAX_HALVINGS {
                     return Err(e);
                 }
                 if x > toward {
@@ -432,7 +443,7 @@ where
         if pt.r.abs() <= unit.tolerance_at(tol, pt.ft)
             || (newton_ok && step.abs() <= 4.0 * f64::EPSILON * x)
         {
-            return Ok(finish(pt, evaluations));
+            return accept(pt, evaluations, tendon);
         }
         if pt.r < 0.0 {
             lo = x;
@@ -445,12 +456,35 @@ where
         if lo_known && hi_known && hi - lo <= 4.0 * f64::EPSILON * hi && !failed_end {
             // The root is resolved in binary64: this point is as good as any
             // (unless an end of the bracket is a failed length: below).
-            return Ok(finish(pt, evaluations));
+            return accept(pt, evaluations, tendon);
         }
         // The trials' interval: the bracket's known ends, else the
         // evaluable range's, never a failed length.
         let top = if hi_known { hi.min(hi_bound) } else { hi_bound };
         let bottom = if lo_known { lo.max(lo_bound) } else { lo_bound };
+        // The root on the side of a failed end of the trials' interval: the
+        // search toward it moves at most halfway there, and so does the
+        // bisection. After MAX_HALVINGS such moves in a row (failed trials
+        // included) the evaluable lengths are taken to end here, as after as
+        // many failed halvings: the failure is the answer (not some fifty
+        // moves to its last ulp).
+        let toward_hi = pt.r < 0.0 && hi_failed && top == hi_bound;
+        let toward_lo = pt.r > 0.0 && lo_failed && bottom == lo_bound;
+        approaches = if toward_hi || toward_lo {
+            approaches + 1
+        } else {
+            0
+        };
+        if approaches > MAX_HALVINGS {
+            let failure = if toward_hi {
+                hi_error.take()
+            } else {
+                lo_error.take()
+            };
+            if let Some(e) = failure {
+                return Err(e);
+            }
+        }
         let newton = x - step;
         let bracketed = lo_known && hi_known;
         if bracketed && top - bottom <= 4.0 * f64::EPSILON * top {
@@ -465,7 +499,7 @@ where
             };
             return match failure {
                 Some(e) => Err(e),
-                None => Ok(finish(pt, evaluations)),
+                None => accept(pt, evaluations, tendon),
             };
         }
         let next = if newton_ok
@@ -559,6 +593,24 @@ where
         x = next;
     }
     Err(EquilibriumError::NoConvergence { lo, hi })
+}
+
+/// The equilibrium at a converged point, or the tendon's rupture where its
+/// strain there is past [`Tendon::max_strain`]: a root at the resolution of
+/// L_M may have R < −tol (the root a little longer), and is still past
+/// rupture.
+fn accept<E>(
+    pt: Point,
+    evaluations: u32,
+    tendon: &Tendon,
+) -> Result<Equilibrium, EquilibriumError<E>> {
+    if pt.strain > tendon.max_strain() {
+        return Err(EquilibriumError::TendonRupture {
+            strain: pt.strain,
+            max_strain: tendon.max_strain(),
+        });
+    }
+    Ok(finish(pt, evaluations))
 }
 
 /// The fibre length at which the tendon on path `path` carries
