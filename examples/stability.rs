@@ -413,6 +413,9 @@ fn report(
     for sc in Scenario::ALL {
         let _ = writeln!(s, "  - `{}`: {}", sc.name(), sc.describe());
     }
+    if models.iter().any(|m| m.contains("Musculotendon")) {
+        s.push_str(&unit_programs());
+    }
     let _ = writeln!(
         s,
         "\nEvery breakpoint of a program lies on the cell's communication grid (durations rounded to whole steps, \
@@ -809,6 +812,56 @@ struct Side {
 /// cells with one backward-Euler CE–SEE step per communication step
 /// (`HillMuscleFE`, the default) and with `adaptive_substeps = true`
 /// ([`FE_ADAPTIVE`]). Empty unless both ran.
+/// The page's paragraph on a musculotendon unit's programs (the harness's
+/// `unit` module says the same), with the caps of each parameter set over D.
+fn unit_programs() -> String {
+    let caps: Vec<String> = ParamSet::ALL
+        .iter()
+        .map(|&params| {
+            let of = |d_comp| {
+                unit_cap(
+                    &Cell {
+                        d_comp,
+                        alpha: ALPHA_VALUES[0],
+                        s: S_VALUES[0],
+                        h: H_VALUES[0],
+                        params,
+                        scenario: Scenario::Toggle,
+                    }
+                    .law(),
+                )
+            };
+            let (lo, hi) = D_VALUES
+                .iter()
+                .map(|&d| of(d))
+                .fold((f64::INFINITY, 0.0f64), |(lo, hi), c| {
+                    (lo.min(c), hi.max(c))
+                });
+            format!("`{}` {lo:.3}–{hi:.3}", params.name())
+        })
+        .collect();
+    format!(
+        "- for a musculotendon unit, whose `length` is its whole path (tendon slack length L_TS = 4 cm, \
+         tendon_strain_at_F0 0.04, no pennation), the stretch is its fibres': the path is the fibres' share, \
+         the path at which the relaxed unit holds its fibres at the stretch, L_TS (1 + ε_T(F_p(λ)/F0)) + λ L0, \
+         with F_p the relaxed muscle's static force at fibre stretch λ (the 1D law, isometric at activation 0; 0 \
+         for λ ≤ 1, where the path is L_TS + λ L0 and a slack tendon cannot push) and ε_T the tendon's strain at \
+         that force. Every program is capped at the stretch where the relaxed fibres carry \
+         {RELAXED_FORCE_CAP} F0, the end of the passive range a musculoskeletal model is used in; here {} over D \
+         (a soft volumetric term lets the fibres thin and reach further). The law's relaxed fibres stiffen \
+         steeply past 1.2 (its matrix term c b e^(b (Ī1 − 3))): with D ≤ 1e-9 they carry 3 to 17 F0 at 1.3 and \
+         thousands to millions of F0 at 2.0, far more than the tendon carries at its rupture strain \
+         2.5·tendon_strain_at_F0 (3.567 F0), so no unit holds its fibres there: such a path is refused \
+         (`fmi2Discard`, the instance unchanged; its own test in `tests/stability_subset.rs`, not a cell of the \
+         matrix). A fully active muscle adds at most f_v,max F0 ≤ 1.82 F0, so every capped program stays short \
+         of rupture. A capped program keeps its timing (a ramp to 2.0 ramps at the same rate to the cap and \
+         holds there until the muscle's program turns); `act-jumps@2` runs at the cap. Between the program's \
+         breakpoints the path is interpolated \
+         linearly.\n",
+        caps.join(", ")
+    )
+}
+
 fn fe_time_control(results: &[CellResult]) -> String {
     let mut s = String::new();
     let of =

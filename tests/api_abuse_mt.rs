@@ -11,10 +11,9 @@
 //! length plus the fibres at L0), so a `Run` moves the fibres by a few times
 //! its amplitude relative to L0. The jumps of `DiscardRecover` go from a
 //! slack tendon (0.5: the muscle shortens until it carries nothing, a step
-//! that completes) to paths of kilometres. A passive unit completes even
-//! the longest path the input takes (100 m: its tendon takes the length),
-//! so the prefix that reaches `stepFailed` adds a length rate that ends the
-//! step at a negative path (discarded). No Integer
+//! that completes) to paths of kilometres, which need the tendon past its
+//! rupture strain (discarded). The prefix that reaches `stepFailed` adds a
+//! length rate that ends the step at a negative path (discarded). No Integer
 //! variables; every Real output but `stiffness` is differentiated
 //! (`stiffness` is itself d force / d length: asking its derivative is
 //! `fmi2Error`).

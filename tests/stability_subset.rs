@@ -20,8 +20,12 @@
 //!
 //! The other tests show that the checks can fail: a model that reports a NaN
 //! or an active stress above its bound, through the same FMI functions, is
-//! caught.
+//! caught. And the musculotendon units' refusal at their tendon's rupture
+//! strain, which their capped programs stay short of (`testkit::stability`'s
+//! `unit`), is tested here through the same functions: `fmi2Discard`, the
+//! instance unchanged, a message the matrix explains.
 
+use hill_muscle::fmi2::types::{fmi2Discard, fmi2OK};
 use hill_muscle::fmi2::{Model, ModelError, ModelInfo, ScalarVariable, SetOutcome, StepError};
 use hill_muscle::fmus::hill1d::{Hill1D, Output, Var};
 use hill_muscle::law::Params;
@@ -369,4 +373,152 @@ fn only_the_run_at_h_fails_a_cell_by_its_time_bound() {
         fails.len() == 1 && fails[0].contains("h: timeout"),
         "{fails:?}"
     );
+}
+
+// ---------------------------------------------------------------------------
+// Rupture: the refusal the units' capped programs stay short of
+// ---------------------------------------------------------------------------
+
+/// A unit driven past its tendon's rupture strain, through the FMI
+/// functions: the step is `fmi2Discard` with a message naming the rupture
+/// strain (a discard the matrix explains), `fmi2LastSuccessfulTime` the
+/// step's start, the instance exactly as before (its model state's bytes
+/// and its outputs); initialization on such a path is `fmi2Error` naming it.
+/// The path: the tendon at its rupture strain 2.5 ε0 and the fibres at
+/// 2.5 L0, where the relaxed fibres alone carry 9 F0 or more (the PE,
+/// 4 (λ − 1)²) against the tendon's 3.567 F0 there, so the equilibrium
+/// needs a longer tendon.
+fn a_unit_past_rupture_is_discarded_unchanged<M: Model>(integers: &[(&str, i32)]) {
+    // The FMU's tendon strain at F0 (not set: its start value).
+    let eps0 = hill_muscle::law::musculotendon::UnitParams::default().tendon_strain_at_f0;
+    let (l0, lts) = (0.05, 0.04);
+    let rest = lts + l0;
+    let past = lts * (1.0 + 2.5 * eps0) + 2.5 * l0;
+    let setup = |path: f64| -> Result<Fmu<M>, String> {
+        let mut fmu = Fmu::<M>::new("rupture")?;
+        for (name, v) in integers {
+            fmu.set_integer(name, *v)?;
+        }
+        fmu.set_real("L0", l0)?;
+        fmu.set_real("tendon_slack_length", lts)?;
+        fmu.set_inputs(1.0, path)?;
+        fmu.initialize()?;
+        Ok(fmu)
+    };
+    let mut fmu = setup(rest).unwrap();
+    let h = 1e-3;
+    assert_eq!(fmu.step(0.0, h).0, fmi2OK);
+    let (mut before, mut after) = (Vec::new(), Vec::new());
+    fmu.outputs(&mut before).unwrap();
+    fmu.set_inputs(1.0, past).unwrap();
+    // The state with the step's inputs set, which the step leaves as is.
+    let bytes = fmu.model_bytes();
+    assert!(!bytes.is_empty());
+    let (status, message) = fmu.step(h, h);
+    assert_eq!(status, fmi2Discard, "{}", message);
+    assert!(
+        message.contains("past the tendon's rupture strain"),
+        "{message}"
+    );
+    assert!(
+        explain(&message).is_some_and(|why| why.contains("rupture")),
+        "{message}"
+    );
+    assert_eq!(fmu.last_successful_time().unwrap(), h);
+    let now = fmu.model_bytes();
+    let first = now.iter().zip(&bytes).position(|(a, b)| a != b);
+    assert!(
+        now.len() == bytes.len() && first.is_none(),
+        "the model's state changed: {} bytes, then {}; first difference at byte {first:?}",
+        bytes.len(),
+        now.len()
+    );
+    fmu.outputs(&mut after).unwrap();
+    assert_eq!(
+        before.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        after.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+    let e = setup(past)
+        .err()
+        .expect("initialization past rupture fails");
+    assert!(
+        e.contains("fmi2Error") && e.contains("past the tendon's rupture strain"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_1d_unit_past_rupture_is_discarded_unchanged() {
+    a_unit_past_rupture_is_discarded_unchanged::<hill_muscle::fmus::musculotendon1d::Musculotendon>(
+        &[],
+    );
+}
+
+#[cfg(feature = "fe")]
+#[test]
+fn the_fe_unit_past_rupture_is_discarded_unchanged() {
+    a_unit_past_rupture_is_discarded_unchanged::<hill_muscle::fmus::musculotendonfe::MusculotendonFe>(
+        &[("n_axial", 6), ("n_radial", 1)],
+    );
+}
+
+/// The units' capped programs stay short of the tendon's rupture: at every
+/// parameter set and D of the grid the cap lies where the relaxed fibres
+/// carry F0, and F0 plus the largest active force, f_v,max F0, stays below
+/// the tendon's force at its rupture strain (3.567 F0). A capped program is
+/// the plain one with every stretch above the cap at the cap (same steps,
+/// same commands), and its path rises with the stretch from the tendon at
+/// slack length plus the fibres at L0.
+#[test]
+fn the_units_capped_programs_stay_short_of_rupture() {
+    use hill_muscle::law::tendon::{tendon_curve, RUPTURE_STRAIN_RATIO};
+    let rupture = tendon_curve(RUPTURE_STRAIN_RATIO, 1.0).0;
+    let (l0, lts) = (0.05, 0.04);
+    for params in ParamSet::ALL {
+        for d_comp in D_VALUES {
+            let cell = Cell {
+                d_comp,
+                alpha: 10.0,
+                s: 1.0,
+                h: 1e-3,
+                params,
+                scenario: Scenario::PassiveRamps,
+            };
+            let p = cell.law();
+            let cap = unit_cap(&p);
+            let at_cap = relaxed_force(&p, cap);
+            eprintln!(
+                "{} D={d_comp:e}: cap {cap:.4}, relaxed force there {at_cap:.6} F0, at 1.3 {:.3} F0, \
+                 at 2.0 {:.3e} F0",
+                params.name(),
+                relaxed_force(&p, 1.3),
+                relaxed_force(&p, 2.0)
+            );
+            assert!(cap > 1.0 && cap <= 2.0, "{cap}");
+            // At the cap the relaxed fibres carry F0, or less at the
+            // programs' largest stretch (a soft volumetric term, D = 1e-4).
+            assert!(
+                (at_cap - RELAXED_FORCE_CAP).abs() < 1e-9
+                    || (cap == 2.0 && at_cap < RELAXED_FORCE_CAP),
+                "{at_cap}"
+            );
+            assert!(at_cap + p.fv_max() < rupture, "{} + {}", at_cap, p.fv_max());
+            let plain = program(cell.scenario, cell.h);
+            let unit = capped(&plain, cap);
+            assert_eq!(unit.steps.len(), plain.steps.len());
+            for (u, s) in unit.steps.iter().zip(&plain.steps) {
+                assert_eq!(u.command, s.command);
+                assert_eq!(u.stretch, s.stretch.min(cap));
+            }
+            assert!(unit.steps.iter().any(|s| s.stretch == cap));
+            assert!(unit.steps.iter().all(|s| s.stretch <= cap));
+            let map = UnitPath::new(&p, l0, lts, 0.04, 0.0);
+            assert_eq!(map.path(1.0), lts + l0);
+            assert_eq!(map.path(0.3), lts + 0.3 * l0);
+            let paths: Vec<f64> = (0..=100)
+                .map(|i| map.path(1.0 + (cap - 1.0) * f64::from(i) / 100.0))
+                .collect();
+            assert!(paths.windows(2).all(|w| w[1] > w[0]));
+        }
+    }
 }

@@ -35,16 +35,18 @@ use crate::fe::step_map::{
     check_stretch, Committed, LastStep, Outputs, Quantity, StepFailure, StepLevel, Stepped,
 };
 use crate::fe::tangent::{Increment, Trend};
-use crate::law::musculotendon::{solve_equilibrium, EquilibriumError, MuscleForce, Unit};
+use crate::law::musculotendon::{
+    solve_equilibrium, EquilibriumError, MuscleForce, Tolerance, Unit, TRUST,
+};
 use crate::law::pennation::MIN_COS;
+use crate::law::tendon::RUPTURE_STRAIN_RATIO;
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::Params;
 
-/// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to F0:
-/// ten times the FE solve's own force tolerance
-/// ([`crate::fe::newton::RESIDUAL_TOLERANCE`]) while |F| ≤ σ0 A, below
-/// which F_M(L_M) is not determined (the FE tolerance grows with |F|
-/// above σ0 A; this one does not yet).
+/// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to
+/// max(F0, |F_T|) ([`Unit::equilibrium_tolerance`]): ten times the FE
+/// solve's own force tolerance ([`crate::fe::newton::RESIDUAL_TOLERANCE`],
+/// relative to max(σ0 A, |F_M|)), below which F_M(L_M) is not determined.
 pub const EQUILIBRIUM_RTOL: f64 = 1e-9;
 
 /// The force change, in FE force tolerances, over which two trials give
@@ -115,9 +117,12 @@ impl Setup<'_> {
         (lo * self.l0, hi * self.l0)
     }
 
-    /// The equilibrium's tolerance (N).
-    fn tol(&self) -> f64 {
-        EQUILIBRIUM_RTOL * self.unit.tendon.f0
+    /// The equilibrium's tolerance (N) where the tendon carries
+    /// `tendon_force` ([`Unit::equilibrium_tolerance`]).
+    #[cfg(test)]
+    fn tol(&self, tendon_force: f64) -> f64 {
+        self.unit
+            .equilibrium_tolerance(EQUILIBRIUM_RTOL, tendon_force)
     }
 }
 
@@ -135,6 +140,11 @@ fn unsolvable(e: EquilibriumError<StepFailure>, path: f64) -> StepFailure {
         EquilibriumError::NoRoot { bound, residual } => format!(
             "no equilibrium of tendon and muscle for fibre lengths the law can evaluate \
              (F_M cos alpha - F_T = {residual:e} N at fibre length {bound} m)"
+        ),
+        EquilibriumError::TendonRupture { strain, max_strain } => format!(
+            "the equilibrium needs a tendon strain of {strain} or more, past the tendon's \
+             rupture strain {max_strain} ({RUPTURE_STRAIN_RATIO} tendon_strain_at_F0); a shorter \
+             path or a larger tendon_strain_at_F0 is needed"
         ),
         EquilibriumError::NoConvergence { lo, hi } => {
             format!("the equilibrium did not converge (fibre length in [{lo}, {hi}] m)")
@@ -285,20 +295,29 @@ impl MusculotendonFE {
             .unwrap_or(s.l0)
             .clamp(s.range().0, s.range().1);
         let mut t = Trials::new(0.0);
-        solve_equilibrium(unit, path, s.range(), guess, s.tol(), |l| {
-            let st = Committed::initialize(disc.clone(), s.params, s.area, l, activation, da_du)
-                .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
-            let (k, _) = st
-                .state
-                .force_derivatives(s.params, s.l0, s.area)
-                .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
-            let force = t.record(l, st, s.unit.tendon.f0).force;
-            t.slope = k;
-            Ok(MuscleForce {
-                force,
-                stiffness: k,
-            })
-        })
+        solve_equilibrium(
+            unit,
+            path,
+            s.range(),
+            guess,
+            Tolerance::Scaled(EQUILIBRIUM_RTOL),
+            Some(TRUST),
+            |l| {
+                let st =
+                    Committed::initialize(disc.clone(), s.params, s.area, l, activation, da_du)
+                        .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+                let (k, _) = st
+                    .state
+                    .force_derivatives(s.params, s.l0, s.area)
+                    .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+                let force = t.record(l, st, s.unit.tendon.f0).force;
+                t.slope = k;
+                Ok(MuscleForce {
+                    force,
+                    stiffness: k,
+                })
+            },
+        )
         .map_err(|e| unsolvable(e, path).to_string())?;
         let st = t.kept.take().expect("the equilibrium evaluates the muscle");
         let mut done = Self::finish(s, path, st, t, Guess::default());
@@ -323,23 +342,31 @@ impl MusculotendonFE {
         let l_now = self.outputs[UnitOutput::FibreLength as usize];
         let predicted = l_now + g.fibre_rate * h + g.slope * ((path - self.path) - g.path_rate * h);
         let mut t = Trials::new(g.stiffness);
-        let eq = solve_equilibrium(s.unit, path, s.range(), predicted, s.tol(), |l| {
-            check_stretch(s.params, s.l0, l)
-                .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
-            // Warm starts skip the error control: only without it.
-            let warm = t
-                .kept
-                .as_ref()
-                .filter(|_| substep_tolerance.is_none())
-                .and_then(|w| warm_step(&self.muscle, &w.state, s.params, s.area, &level, l));
-            let st = match warm {
-                Some(st) => st,
-                None => self
-                    .muscle
-                    .step(s.params, s.area, level, l, substep_tolerance)?,
-            };
-            Ok(t.record(l, st, s.unit.tendon.f0))
-        })
+        let eq = solve_equilibrium(
+            s.unit,
+            path,
+            s.range(),
+            predicted,
+            Tolerance::Scaled(EQUILIBRIUM_RTOL),
+            Some(TRUST),
+            |l| {
+                check_stretch(s.params, s.l0, l)
+                    .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+                // Warm starts skip the error control: only without it.
+                let warm = t
+                    .kept
+                    .as_ref()
+                    .filter(|_| substep_tolerance.is_none())
+                    .and_then(|w| warm_step(&self.muscle, &w.state, s.params, s.area, &level, l));
+                let st = match warm {
+                    Some(st) => st,
+                    None => self
+                        .muscle
+                        .step(s.params, s.area, level, l, substep_tolerance)?,
+                };
+                Ok(t.record(l, st, s.unit.tendon.f0))
+            },
+        )
         .map_err(|e| unsolvable(e, path))?;
         debug_assert_eq!(
             eq.fibre_length,

@@ -17,7 +17,8 @@
 //! residual there is below the tolerance (or at the resolution of L_M in
 //! binary64, reported in [`Equilibrium::residual`]); a root that does not
 //! exist in the muscle's evaluable range, or only past the largest
-//! pennation angle, is an error, never a clamped force.
+//! pennation angle, or only past the tendon's rupture strain
+//! ([`Tendon::max_strain`]), is an error, never a clamped force.
 
 use super::params::{ParamError, TendonParamId, TENDON_PARAMETERS};
 use super::pennation::{Pennated, Pennation};
@@ -180,6 +181,9 @@ pub enum EquilibriumError<E> {
     /// No root in the fibre lengths the muscle can evaluate: the residual
     /// F_M cos α − F_T keeps the sign `residual` (N) at the bound `bound`.
     NoRoot { bound: f64, residual: f64 },
+    /// The equilibrium needs a tendon strain of at least `strain`, past the
+    /// tendon's rupture strain `max_strain` ([`Tendon::max_strain`]).
+    TendonRupture { strain: f64, max_strain: f64 },
     /// The iteration cap was reached.
     NoConvergence { lo: f64, hi: f64 },
 }
@@ -199,6 +203,49 @@ struct Point {
     kt: f64,
 }
 
+/// The trust length for a muscle whose evaluation is expensive far from
+/// the root (the FE step): before the root is bracketed no move exceeds
+/// this fraction of L_M ([`solve_equilibrium`]'s `trust`).
+pub const TRUST: f64 = 0.1;
+
+/// Consecutive failed evaluations, each halving the step back toward the
+/// last evaluable fibre length, after which the failure is the answer: the
+/// evaluable range then ends within 2⁻¹⁶ of the first failed step from it.
+/// Also the bound of consecutive good points that approach a failed length
+/// with the root on its side ([`solve_equilibrium`]).
+pub const MAX_HALVINGS: u32 = 16;
+
+/// The tolerance of the equilibrium's residual F_M cos α − F_T.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Tolerance {
+    /// A fixed tolerance (N): for a muscle whose force is exact to rounding
+    /// (the 1D law), so that nothing grows with the force.
+    Fixed(f64),
+    /// `rtol` × max(F0, |F_T|) ([`Unit::equilibrium_tolerance`]): for a
+    /// muscle whose force is itself solved to a tolerance relative to
+    /// max(F0, |F_M|) (the FE solve).
+    Scaled(f64),
+}
+
+impl Unit {
+    /// The equilibrium's tolerance (N) on its residual F_M cos α − F_T where
+    /// the tendon carries `tendon_force`: `rtol` × max(F0, |F_T|). A muscle
+    /// solved to a tolerance relative to max(F0, |F_M|), with
+    /// |F_M| cos α ≤ max(F0, |F_T|) at the root, then keeps a fixed margin
+    /// below it at every force the tendon can carry.
+    pub fn equilibrium_tolerance(&self, rtol: f64, tendon_force: f64) -> f64 {
+        rtol * self.tendon.f0.max(tendon_force.abs())
+    }
+
+    /// The tolerance `tol` (N) where the tendon carries `tendon_force`.
+    fn tolerance_at(&self, tol: Tolerance, tendon_force: f64) -> f64 {
+        match tol {
+            Tolerance::Fixed(t) => t,
+            Tolerance::Scaled(rtol) => self.equilibrium_tolerance(rtol, tendon_force),
+        }
+    }
+}
+
 /// The equilibrium at path length `path` (MODEL_NOTES "Musculotendon
 /// unit"), for fibre lengths within `range` (the muscle's evaluable ones),
 /// starting from `guess`; `muscle(L_M)` is the muscle's force and stiffness
@@ -208,12 +255,34 @@ struct Point {
 /// one evaluation, F_T = F_M cos α. Compliant: the residual
 /// R(L_M) = F_M(L_M) cos α − F_T(ℓ − L_M cos α), increasing where F_M is
 /// (F_T falls as L_M grows), is solved by a bracketed, safeguarded Newton
-/// iteration: from the guess, Newton steps while they stay inside the
-/// bracket (and, once both ends are known, at most half the step before
+/// iteration: from the guess, Newton steps while they stay strictly inside
+/// the bracket (and, once both ends are known, at most half the step before
 /// last); else the bracket is bisected, or — with an end still unknown —
-/// the search steps outward, doubling, toward the range's bound. Converged
-/// when |R| ≤ `tol` (N), or when the Newton correction is below 4 ulp of
-/// L_M. A slack tendon (F_T = 0) gives the root F_M = 0.
+/// the search steps outward, doubling, toward the range's bound. Before
+/// the bracket is known, with `trust` = Some(f) (a muscle expensive to
+/// evaluate far from the root: the FE step), no move exceeds f L_M or
+/// twice the last move, and with R > 0 none goes below the fibre length at
+/// which the tendon alone carries the muscle's present force; with `None`
+/// (an evaluation costs the same anywhere: the 1D law) the search is
+/// unbounded. Converged
+/// when |R| ≤ `tol` ([`Tolerance`], at the point's F_T), or when the
+/// Newton correction is below 4 ulp of L_M. A slack tendon (F_T = 0) gives
+/// the root F_M = 0. The tendon strain falls as L_M grows, so a root that
+/// needs more than the rupture strain ([`Tendon::max_strain`]) is refused
+/// as soon as it is known: before any evaluation when the strain exceeds it
+/// at the longest evaluable fibres, or at a point with R > 0 (the root is
+/// shorter) and a strain past it, or at the converged point itself (at the
+/// resolution of L_M its R may be below −tol).
+///
+/// Where the muscle cannot be evaluated (its closure fails), the evaluable
+/// lengths end between the last good point and the failed one: no later
+/// trial goes to or past a failed length (the evaluable lengths are taken
+/// to be an interval), the step back is halved toward
+/// the good point at most [`MAX_HALVINGS`] times in a row, at most as many
+/// good points in a row approach a failed end with the root on its side
+/// (each then the failure is the answer), and a failed first trial is retried once at a fallback point (the rigid tendon's
+/// fibre length, else the middle of the range) before the failure is
+/// returned.
 ///
 /// Derivatives (implicit function theorem on R = 0, with R_L = dR/dL_M =
 /// k_M + k_T / cos α, k_M = d(F_M cos α)/dL_M, k_T = dF_T/dL_T):
@@ -224,7 +293,8 @@ pub fn solve_equilibrium<E, F>(
     path: f64,
     range: (f64, f64),
     guess: f64,
-    tol: f64,
+    tol: Tolerance,
+    trust: Option<f64>,
     mut muscle: F,
 ) -> Result<Equilibrium, EquilibriumError<E>>
 where
@@ -280,49 +350,100 @@ where
             kt,
         })
     };
+    let near = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * a.abs().max(b.abs());
+    // The evaluable range: its ends, and whether each is a failed length
+    // (never tried again) or the range given.
     let (mut lo_bound, mut hi_bound) = (range.0.max(min_fibre), range.1);
+    let (mut lo_failed, mut hi_failed) = (false, false);
+    // The bracket: the ends with R < 0 (lo) and R > 0 (hi) once known.
+    let rupture = |strain: f64| EquilibriumError::TendonRupture {
+        strain,
+        max_strain: tendon.max_strain(),
+    };
+    if lo_bound <= hi_bound {
+        let least = tendon.strain(path - pen.at(hi_bound).projection);
+        if least > tendon.max_strain() {
+            return Err(rupture(least));
+        }
+    }
     let (mut lo, mut hi) = (lo_bound, hi_bound);
     let (mut lo_known, mut hi_known) = (false, false);
     let mut x = guess.clamp(lo_bound, hi_bound);
     // The last two steps (the progress test) and the outward search's step.
     let (mut dx, mut dx_old) = (hi - lo, hi - lo);
     let mut reach = 1e-3 * x;
-    // 200: bisection of the evaluable range to 1 ulp takes ~60.
-    // The last point the muscle could evaluate.
+    // The last point the muscle could evaluate, the errors at the failed
+    // ends of the range, whether the fallback was tried, the failures in a
+    // row.
     let mut good: Option<f64> = None;
+    let (mut lo_error, mut hi_error) = (None, None);
+    let mut fallback_tried = false;
+    let mut halvings = 0u32;
+    // Moves in a row toward a failed end: failed trials after a good point,
+    // and good points with the root on the side of a failed end.
+    let mut approaches = 0u32;
+    let mut last_move = 0.0f64;
+    // 200: bisection of the evaluable range to 1 ulp takes ~60.
     for _ in 0..200 {
         let pt = match eval(x) {
             Ok(pt) => pt,
-            // The muscle cannot be evaluated at x (its law overflows, or its
-            // step fails, past some fibre length): the evaluable range ends
-            // between the last good point and x. Move that bound of the
-            // range to x and halve the step, until x is within 4 ulp of
-            // the good point, where the failure is the answer.
-            Err(e) => match good {
-                Some(g) if (x - g).abs() > 4.0 * f64::EPSILON * x.abs() => {
-                    if x > g {
-                        hi_bound = x;
-                        if !hi_known {
-                            hi = x;
-                        }
-                    } else {
-                        lo_bound = x;
-                        if !lo_known {
-                            lo = x;
+            Err(e) => {
+                // The evaluable range ends between the last good point (or
+                // the fallback) and x: x becomes that end of the range.
+                let toward = match good {
+                    Some(g) => g,
+                    None if !fallback_tried => {
+                        fallback_tried = true;
+                        let rigid = pen
+                            .fibre_length_of(path - tendon.slack_length)
+                            .map(|l| l.clamp(lo_bound, hi_bound));
+                        match rigid {
+                            Some(l) if !near(l, x) => l,
+                            _ => 0.5 * (lo_bound + hi_bound),
                         }
                     }
-                    reach = 0.25 * (x - g).abs();
-                    x = 0.5 * (g + x);
-                    continue;
+                    // The fallback failed too: the first trial's failure.
+                    None => return Err(hi_error.or(lo_error).unwrap_or(e)),
+                };
+                halvings += 1;
+                // A halving move toward a failed end (below).
+                if good.is_some() {
+                    approaches += 1;
                 }
-                _ => return Err(e),
-            },
+                if near(x, toward) || halvings > MAX_HALVINGS || approaches > MAX_HALVINGS {
+                    return Err(e);
+                }
+                if x > toward {
+                    hi_bound = x;
+                    hi_failed = true;
+                    hi = hi.min(x);
+                    hi_error = Some(e);
+                } else {
+                    lo_bound = x;
+                    lo_failed = true;
+                    lo = lo.max(x);
+                    lo_error = Some(e);
+                }
+                reach = 0.25 * (x - toward).abs();
+                x = if good.is_some() {
+                    0.5 * (toward + x)
+                } else {
+                    toward
+                };
+                continue;
+            }
         };
         good = Some(x);
+        halvings = 0;
+        if pt.strain > tendon.max_strain() && pt.r >= -unit.tolerance_at(tol, pt.ft) {
+            return Err(rupture(pt.strain));
+        }
         let step = pt.r / pt.dr;
         let newton_ok = pt.dr > 0.0 && step.is_finite();
-        if pt.r.abs() <= tol || (newton_ok && step.abs() <= 4.0 * f64::EPSILON * x) {
-            return Ok(finish(pt, evaluations));
+        if pt.r.abs() <= unit.tolerance_at(tol, pt.ft)
+            || (newton_ok && step.abs() <= 4.0 * f64::EPSILON * x)
+        {
+            return accept(pt, evaluations, tendon);
         }
         if pt.r < 0.0 {
             lo = x;
@@ -331,22 +452,72 @@ where
             hi = x;
             hi_known = true;
         }
-        if lo_known && hi_known && hi - lo <= 4.0 * f64::EPSILON * hi {
-            // The root is resolved in binary64: this point is as good as any.
-            return Ok(finish(pt, evaluations));
+        let failed_end = (lo_failed && lo == lo_bound) || (hi_failed && hi == hi_bound);
+        if lo_known && hi_known && hi - lo <= 4.0 * f64::EPSILON * hi && !failed_end {
+            // The root is resolved in binary64: this point is as good as any
+            // (unless an end of the bracket is a failed length: below).
+            return accept(pt, evaluations, tendon);
+        }
+        // The trials' interval: the bracket's known ends, else the
+        // evaluable range's, never a failed length.
+        let top = if hi_known { hi.min(hi_bound) } else { hi_bound };
+        let bottom = if lo_known { lo.max(lo_bound) } else { lo_bound };
+        // The root on the side of a failed end of the trials' interval: the
+        // search toward it moves at most halfway there, and so does the
+        // bisection. After MAX_HALVINGS such moves in a row (failed trials
+        // included) the evaluable lengths are taken to end here, as after as
+        // many failed halvings: the failure is the answer (not some fifty
+        // moves to its last ulp).
+        let toward_hi = pt.r < 0.0 && hi_failed && top == hi_bound;
+        let toward_lo = pt.r > 0.0 && lo_failed && bottom == lo_bound;
+        approaches = if toward_hi || toward_lo {
+            approaches + 1
+        } else {
+            0
+        };
+        if approaches > MAX_HALVINGS {
+            let failure = if toward_hi {
+                hi_error.take()
+            } else {
+                lo_error.take()
+            };
+            if let Some(e) = failure {
+                return Err(e);
+            }
         }
         let newton = x - step;
         let bracketed = lo_known && hi_known;
+        if bracketed && top - bottom <= 4.0 * f64::EPSILON * top {
+            // The bracket ends at a failed length within rounding of the
+            // last point: the failure is the answer.
+            let failure = if hi_failed && top == hi_bound {
+                hi_error.take()
+            } else if lo_failed && bottom == lo_bound {
+                lo_error.take()
+            } else {
+                None
+            };
+            return match failure {
+                Some(e) => Err(e),
+                None => accept(pt, evaluations, tendon),
+            };
+        }
         let next = if newton_ok
-            && newton > lo
-            && newton < hi
+            && newton > bottom
+            && newton < top
             && (!bracketed || (2.0 * step).abs() <= dx_old.abs())
         {
             newton
         } else if bracketed {
-            0.5 * (lo + hi)
+            0.5 * (bottom + top)
         } else if pt.r < 0.0 {
-            // Search upward toward the range's top.
+            // Search upward toward the range's top (short of a failed one).
+            if hi_failed && near(x, hi_bound) {
+                // The range ends here at a failure: it is the answer.
+                if let Some(e) = hi_error.take() {
+                    return Err(e);
+                }
+            }
             if x >= hi_bound {
                 return Err(EquilibriumError::NoRoot {
                     bound: hi_bound,
@@ -354,8 +525,18 @@ where
                 });
             }
             reach = (2.0 * reach).max(2.0 * step.abs());
-            (x + reach).min(hi_bound)
+            let cap = if hi_failed {
+                0.5 * (x + hi_bound)
+            } else {
+                hi_bound
+            };
+            (x + reach).min(cap)
         } else {
+            if lo_failed && near(x, lo_bound) {
+                if let Some(e) = lo_error.take() {
+                    return Err(e);
+                }
+            }
             if x <= lo_bound {
                 return Err(if lo_bound == min_fibre {
                     EquilibriumError::LargestAngle {
@@ -370,13 +551,78 @@ where
                 });
             }
             reach = (2.0 * reach).max(2.0 * step.abs());
-            (x - reach).max(lo_bound)
+            let cap = if lo_failed {
+                0.5 * (x + lo_bound)
+            } else {
+                lo_bound
+            };
+            (x - reach).max(cap)
+        };
+        // Before the root is bracketed no trial moves further than the
+        // trust length: a tenth of L_M, or twice the last move (so that a
+        // far root is still reached in a few doublings). A Newton or search
+        // step from a stale slope (a slack tendon has none of its own)
+        // would otherwise evaluate the muscle far from the root.
+        let Some(fraction) = trust else {
+            dx_old = dx;
+            dx = next - x;
+            x = next;
+            continue;
+        };
+        let next = if bracketed {
+            next
+        } else {
+            let reach = (fraction * x).max(2.0 * last_move);
+            next.clamp(x - reach, x + reach)
+        };
+        // R > 0: the root is shorter, where the tendon is longer and
+        // stiffer. No trial goes below the fibre length at which the tendon
+        // alone carries the muscle's present force F_M cos α: from a slack
+        // tendon (k_T = 0) Newton's step and the outward search would
+        // otherwise leap to the range's end.
+        let next = match (
+            pt.r > 0.0,
+            tendon_balance(unit, path, pt.muscle.force * pt.pen.cos),
+        ) {
+            (true, Some(xt)) if xt < x && next < xt && xt > bottom => xt,
+            _ => next,
         };
         dx_old = dx;
         dx = next - x;
+        last_move = dx.abs();
         x = next;
     }
     Err(EquilibriumError::NoConvergence { lo, hi })
+}
+
+/// The equilibrium at a converged point, or the tendon's rupture where its
+/// strain there is past [`Tendon::max_strain`]: a root at the resolution of
+/// L_M may have R < −tol (the root a little longer), and is still past
+/// rupture.
+fn accept<E>(
+    pt: Point,
+    evaluations: u32,
+    tendon: &Tendon,
+) -> Result<Equilibrium, EquilibriumError<E>> {
+    if pt.strain > tendon.max_strain() {
+        return Err(EquilibriumError::TendonRupture {
+            strain: pt.strain,
+            max_strain: tendon.max_strain(),
+        });
+    }
+    Ok(finish(pt, evaluations))
+}
+
+/// The fibre length at which the tendon on path `path` carries
+/// `force` (N): L_M cos α = ℓ − L_TS (1 + ε(F/F0)) ([`Tendon::strain_at`]);
+/// `None` past the largest pennation angle or for no tension.
+fn tendon_balance(unit: &Unit, path: f64, force: f64) -> Option<f64> {
+    let t = &unit.tendon;
+    if force.is_nan() || force <= 0.0 {
+        return None;
+    }
+    let lt = t.slack_length * (1.0 + t.strain_at(force));
+    unit.pennation.fibre_length_of(path - lt)
 }
 
 /// The equilibrium's outputs and implicit derivatives at a converged point
@@ -400,240 +646,4 @@ fn finish(pt: Point, evaluations: u32) -> Equilibrium {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const L0: f64 = 0.05;
-    const F0: f64 = 100.0;
-    const TOL: f64 = 1e-10 * F0;
-
-    /// A synthetic monotone muscle: F_M = F0 (a + e^(5 (L/L0 − 1)) − 1),
-    /// zero at L/L0 = 1 + ln(1 − a)/5 (a < 1), negative below.
-    fn synthetic(a: f64) -> impl FnMut(f64) -> Result<MuscleForce, ()> {
-        move |l: f64| {
-            let e = (5.0 * (l / L0 - 1.0)).exp();
-            Ok(MuscleForce {
-                force: F0 * (a + e - 1.0),
-                stiffness: F0 * 5.0 * e / L0,
-            })
-        }
-    }
-
-    fn unit(eps0: f64, alpha0: f64, compliant: bool) -> Unit {
-        let p = UnitParams {
-            tendon_slack_length: 0.04,
-            tendon_strain_at_f0: eps0,
-            pennation_angle: alpha0,
-            compliant_tendon: compliant,
-        };
-        Unit::new(&p, L0, F0)
-    }
-
-    fn solve(u: &Unit, path: f64, a: f64) -> Result<Equilibrium, EquilibriumError<()>> {
-        solve_equilibrium(u, path, (0.1 * L0, 5.0 * L0), L0, TOL, synthetic(a))
-    }
-
-    /// A muscle that cannot be evaluated past a fibre length (its law
-    /// overflows there): a root below it is found however far the
-    /// outward search overshoots into the failing lengths; a root beyond
-    /// it is the muscle's error at the end of the evaluable lengths.
-    #[test]
-    fn a_muscle_that_fails_past_a_length_is_searched_below_it() {
-        let u = unit(0.04, 0.0, true);
-        let failing = |limit: f64| {
-            let mut m = synthetic(0.0);
-            move |l: f64| if l > limit { Err(()) } else { m(l) }
-        };
-        let path = 0.04 * 1.5 + 1.3 * L0;
-        let free = solve(&u, path, 0.0).unwrap();
-        for limit in [1.02, 1.5, 3.0].map(|k| k * free.fibre_length) {
-            let eq = solve_equilibrium(
-                &u,
-                path,
-                (0.1 * L0, 5.0 * L0),
-                0.5 * L0,
-                TOL,
-                failing(limit),
-            )
-            .unwrap();
-            assert!(eq.residual.abs() <= TOL, "{limit}: {}", eq.residual);
-            assert!((eq.fibre_length - free.fibre_length).abs() <= 1e-12 * L0);
-        }
-        let below = 0.9 * free.fibre_length;
-        match solve_equilibrium(
-            &u,
-            path,
-            (0.1 * L0, 5.0 * L0),
-            0.5 * L0,
-            TOL,
-            failing(below),
-        ) {
-            Err(EquilibriumError::Muscle { fibre_length, .. }) => {
-                assert!(
-                    fibre_length > below && fibre_length - below <= 1e-12 * L0,
-                    "{fibre_length}"
-                )
-            }
-            other => panic!("{:?}", other.map(|e| e.fibre_length)),
-        }
-    }
-
-    #[test]
-    fn defaults_are_in_range_and_bad_values_are_refused() {
-        let mut p = UnitParams::default();
-        assert!(p.validate().is_ok());
-        assert_eq!(p.tendon_strain_at_f0, 0.04);
-        let before = p;
-        for (id, v) in [
-            (TendonParamId::TendonSlackLength, 0.0),
-            (TendonParamId::TendonStrainAtF0, 0.0),
-            (TendonParamId::PennationAngle, 1.2),
-            (TendonParamId::PennationAngle, f64::NAN),
-        ] {
-            let e = p.set(id, v).unwrap_err();
-            assert!(e.to_string().contains("must be"), "{e}");
-            assert_eq!(p, before);
-        }
-    }
-
-    #[test]
-    fn the_residual_is_below_tolerance_over_stiffness_pennation_and_activation() {
-        let mut worst: f64 = 0.0;
-        let mut most = 0;
-        for eps0 in [0.1, 0.04, 1e-2, 1e-3, 1e-4, 1e-6] {
-            for alpha0 in [0.0, 0.5, 1.0] {
-                for a in [0.0, 0.5, 1.0] {
-                    for path in [0.07, 0.085, 0.09, 0.1, 0.12] {
-                        let u = unit(eps0, alpha0, true);
-                        let eq = solve(&u, path, a).unwrap();
-                        let m = eq.muscle.force * eq.pennation.cos;
-                        // The residual at the returned point, recomputed.
-                        let ft = u.tendon.force(path - eq.pennation.projection).0;
-                        assert_eq!(eq.residual, m - ft);
-                        // Below tol, or at the resolution of L_M (ε0 = 1e-6:
-                        // k_T ulp(L_M) ~ 1e-10 F0).
-                        let resolution = 8.0 * f64::EPSILON * L0 * u.tendon.f0 * 1.712
-                            / (eps0 * u.tendon.slack_length);
-                        assert!(
-                            eq.residual.abs() <= TOL.max(resolution),
-                            "ε0 {eps0} α0 {alpha0} a {a} ℓ {path}: {:e}",
-                            eq.residual
-                        );
-                        worst = worst.max(eq.residual.abs() / F0);
-                        most = most.max(eq.evaluations);
-                    }
-                }
-            }
-        }
-        eprintln!("worst residual {worst:e} F0, at most {most} evaluations");
-        assert!(most <= 30, "{most}");
-    }
-
-    #[test]
-    fn a_slack_tendon_leaves_the_muscle_at_zero_force() {
-        for a in [0.0, 0.5] {
-            for alpha0 in [0.0, 0.5] {
-                // Shorter than tendon slack + the fibres at zero force.
-                let u = unit(0.04, alpha0, true);
-                let eq = solve(&u, 0.06, a).unwrap();
-                assert_eq!(eq.tendon_force, 0.0);
-                assert!(eq.tendon_strain < 0.0);
-                assert!(
-                    eq.muscle.force.abs() <= TOL / eq.pennation.cos,
-                    "{:e}",
-                    eq.muscle.force
-                );
-                assert_eq!(eq.stiffness, 0.0);
-                assert_eq!(eq.dfibre_dpath, 0.0);
-            }
-        }
-    }
-
-    #[test]
-    fn near_rigid_converges_to_rigid() {
-        for alpha0 in [0.0, 0.5] {
-            for a in [0.0, 1.0] {
-                let path = 0.095;
-                let rigid = solve(&unit(0.04, alpha0, false), path, a).unwrap();
-                let mut errs = Vec::new();
-                for eps0 in [1e-2, 1e-3, 1e-4] {
-                    let eq = solve(&unit(eps0, alpha0, true), path, a).unwrap();
-                    errs.push((eq.tendon_force - rigid.tendon_force).abs() / F0);
-                }
-                // First order in ε0: the tendon stretches by ~ε0 L_TS F_T/F0,
-                // which the (stiff, 5 F0/L0) synthetic muscle feels; observed
-                // ratios 9.3 and 9.9 per decade.
-                assert!(errs[2] < 2e-3, "{errs:?}");
-                assert!(
-                    errs[1] / errs[2] > 8.0 && errs[0] / errs[1] > 8.0,
-                    "{errs:?}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn the_largest_angle_is_refused() {
-        // Rigid: a path shorter than L_TS + the smallest projection.
-        let u = unit(0.04, 1.0, false);
-        let short = u.tendon.slack_length + 0.5 * u.pennation.min_projection();
-        assert!(matches!(
-            solve(&u, short, 1.0),
-            Err(EquilibriumError::LargestAngle { .. })
-        ));
-        // Compliant, with a muscle that pulls at every length.
-        let u = unit(0.04, 1.0, true);
-        let pulls = |_: f64| -> Result<MuscleForce, ()> {
-            Ok(MuscleForce {
-                force: F0,
-                stiffness: 0.0,
-            })
-        };
-        let r = solve_equilibrium(&u, 0.03, (0.1 * L0, 5.0 * L0), L0, TOL, pulls);
-        assert!(
-            matches!(r, Err(EquilibriumError::LargestAngle { .. })),
-            "{r:?}"
-        );
-        // At the largest angle, an equilibrium just inside it is found.
-        let u = unit(0.04, 1.0, true);
-        let eq = solve(&u, 0.0405, 0.0).unwrap();
-        assert!(eq.pennation.cos >= crate::law::pennation::MIN_COS);
-    }
-
-    #[test]
-    fn derivatives_match_finite_differences_of_the_solve() {
-        for (eps0, alpha0, compliant) in [
-            (0.04, 0.0, true),
-            (0.04, 0.5, true),
-            (1e-4, 0.5, true),
-            (0.04, 0.5, false),
-        ] {
-            let u = unit(eps0, alpha0, compliant);
-            let (path, a) = (0.095, 0.7);
-            let eq = solve(&u, path, a).unwrap();
-            let d = 1e-7 * path;
-            let f = |p| solve(&u, p, a).unwrap().tendon_force;
-            let fd = (f(path + d) - f(path - d)) / (2.0 * d);
-            assert!(
-                (fd - eq.stiffness).abs() <= 1e-5 * eq.stiffness,
-                "{fd} vs {}",
-                eq.stiffness
-            );
-            let lf = |p| solve(&u, p, a).unwrap().fibre_length;
-            let fd = (lf(path + d) - lf(path - d)) / (2.0 * d);
-            assert!((fd - eq.dfibre_dpath).abs() <= 1e-5 * eq.dfibre_dpath.abs().max(1e-3));
-            // A change of F_M at fixed L_M: through a.
-            let da = 1e-6;
-            let g = |a| solve(&u, path, a).unwrap();
-            let (p, m) = (g(a + da), g(a - da));
-            let fd_f = (p.tendon_force - m.tendon_force) / (2.0 * da);
-            let fd_l = (p.fibre_length - m.fibre_length) / (2.0 * da);
-            // dF_M/da at fixed L_M is F0.
-            assert!(
-                (fd_f - eq.dforce_dforce * F0).abs() <= 1e-5 * fd_f.abs(),
-                "{fd_f}"
-            );
-            assert!((fd_l - eq.dfibre_dforce * F0).abs() <= 1e-5 * fd_l.abs().max(1e-9));
-        }
-    }
-}
+mod tests;

@@ -7,6 +7,9 @@
 //! (a slack tendon carries nothing, in compression too), f_T is continuous
 //! and non-decreasing, and its slope is continuous to 7.06e-4 relative at the
 //! toe's end ε_toe (Thelen's rounded constants; the test says the figure).
+//! The curve is the tendon's only up to its rupture strain
+//! [`Tendon::max_strain`]: a musculotendon unit refuses an equilibrium that
+//! needs more.
 
 /// Force at the end of the toe region, as a fraction of F0 (Thelen 2003).
 pub const F_TOE: f64 = 0.33;
@@ -16,6 +19,15 @@ pub const K_TOE: f64 = 3.0;
 pub const TOE_STRAIN_RATIO: f64 = 0.609;
 /// k_lin ε0: the linear region's slope times ε0 (Thelen 2003).
 pub const LINEAR_SLOPE_TIMES_STRAIN: f64 = 1.712;
+
+/// ε_max / ε0: the strain at which the tendon ruptures, in units of its
+/// strain at F0. Tendons fail at strains of about 8–10 % (Butler, Grood,
+/// Noyes & Zernicke 1978, "Biomechanics of ligaments and tendons", Exerc.
+/// Sport Sci. Rev. 6: 125–181); with Thelen's (2003) ε0 = 0.04, the
+/// default, 2.5 ε0 = 0.10 is the upper end of that range. Scaled with ε0,
+/// the bound is one point of the normalized curve for every tendon:
+/// f_T(2.5 ε0) = 1.712 (2.5 − 0.609) + 0.33 = 3.567 F0.
+pub const RUPTURE_STRAIN_RATIO: f64 = 2.5;
 
 /// Thelen's normalized tendon force f_T(ε) = F_T / F0 and its slope
 /// df_T/dε at strain `eps`, for the strain at F0 `eps0` (MODEL_NOTES
@@ -56,6 +68,28 @@ impl Tendon {
         length / self.slack_length - 1.0
     }
 
+    /// The largest strain the tendon takes, ε_max = [`RUPTURE_STRAIN_RATIO`]
+    /// ε0 (its rupture strain); a longer tendon is no equilibrium of the
+    /// unit.
+    #[inline]
+    pub fn max_strain(&self) -> f64 {
+        RUPTURE_STRAIN_RATIO * self.strain_at_f0
+    }
+
+    /// The strain at which the tendon carries `force` (N) > 0: the inverse
+    /// of [`tendon_curve`], ε_toe/k_toe · ln(1 + f (e^k_toe − 1)/F_toe) for
+    /// f = F/F0 ≤ F_toe, ε_toe + (f − F_toe)/k_lin above (MODEL_NOTES
+    /// "Musculotendon unit").
+    pub fn strain_at(&self, force: f64) -> f64 {
+        let (eps0, f) = (self.strain_at_f0, force / self.f0);
+        let eps_toe = TOE_STRAIN_RATIO * eps0;
+        if f <= F_TOE {
+            eps_toe / K_TOE * (f * K_TOE.exp_m1() / F_TOE).ln_1p()
+        } else {
+            eps_toe + (f - F_TOE) * eps0 / LINEAR_SLOPE_TIMES_STRAIN
+        }
+    }
+
     /// Force F_T = F0 f_T(ε) (N) and stiffness dF_T/dL_T (N/m) at tendon
     /// length `length` (MODEL_NOTES "Musculotendon unit"; ε as
     /// [`Tendon::strain`]).
@@ -79,6 +113,34 @@ mod tests {
             // 1.712 (1 − 0.609) + 0.33 = 0.999392 at ε0.
             let (f, _) = tendon_curve(eps0, eps0);
             assert!((f - 0.999392).abs() < 1e-12, "{f}");
+        }
+    }
+
+    #[test]
+    fn the_rupture_strain_is_ten_percent_at_the_default_and_3_567_f0() {
+        let t = |eps0| Tendon {
+            slack_length: 0.2,
+            strain_at_f0: eps0,
+            f0: 1.0,
+        };
+        assert!((t(0.04).max_strain() - 0.10).abs() < 1e-15);
+        for eps0 in [1e-4, 0.04, 1.0] {
+            let (f, _) = tendon_curve(t(eps0).max_strain(), eps0);
+            assert!((f - 3.567392).abs() < 1e-12, "{f}");
+        }
+    }
+
+    #[test]
+    fn strain_at_inverts_the_curve() {
+        let t = Tendon {
+            slack_length: 0.2,
+            strain_at_f0: 0.04,
+            f0: 800.0,
+        };
+        for eps in [1e-6, 0.003, 0.0243, 0.03, 0.1] {
+            let f = t.force(t.slack_length * (1.0 + eps)).0;
+            let back = t.strain_at(f);
+            assert!((back - eps).abs() <= 1e-12, "{eps}: {back}");
         }
     }
 

@@ -27,14 +27,15 @@ use super::muscle::Muscle1D;
 use super::outputs::{Input, Jacobian, IN_ACTIVATION, IN_LENGTH, N_IN, N_OUT};
 use super::step::{combine, PieceEnd, Solved, StepStatistics, Stepped};
 use crate::law::musculotendon::{
-    solve_equilibrium, EquilibriumError, MuscleForce, Unit, UnitParams,
+    solve_equilibrium, EquilibriumError, MuscleForce, Tolerance, Unit, UnitParams,
 };
 use crate::law::params::LENGTH_RANGE;
 use crate::law::uniaxial::{evaluable_stretch_range, Sensitivity};
 use crate::law::{solve_uniaxial_with, Components, FibreHistory, FibreRate, Uniaxial};
 use std::cell::Cell;
 
-/// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to F0.
+/// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to F0
+/// ([`Tolerance::Fixed`]: the law's force is solved to rounding).
 pub const EQUILIBRIUM_RTOL: f64 = 1e-10;
 
 /// The unit's outputs (MODEL_NOTES "Musculotendon unit": outputs).
@@ -199,6 +200,12 @@ fn unsolvable(e: EquilibriumError<Discard>, path: f64) -> Discard {
             "path length = {path} m: no equilibrium of tendon and muscle for fibre lengths the law \
              can evaluate (F_M cos alpha - F_T = {residual:e} N at fibre length {bound} m)"
         )),
+        EquilibriumError::TendonRupture { strain, max_strain } => Discard::Unsolvable(format!(
+            "path length = {path} m: the equilibrium needs a tendon strain of {strain} or more, \
+             past the tendon's rupture strain {max_strain} ({} tendon_strain_at_F0); a shorter \
+             path or a larger tendon_strain_at_F0 is needed",
+            crate::law::tendon::RUPTURE_STRAIN_RATIO
+        )),
         EquilibriumError::NoConvergence { lo, hi } => Discard::Unsolvable(format!(
             "path length = {path} m: the equilibrium did not converge (fibre length in [{lo}, {hi}] m)"
         )),
@@ -235,7 +242,8 @@ impl PieceEnd for PathEnds<'_> {
             path,
             self.range,
             guess * self.l0,
-            self.tol,
+            Tolerance::Fixed(self.tol),
+            None,
             |l_m| {
                 let u = law(l_m / self.l0)?;
                 let m = MuscleForce {
@@ -345,23 +353,31 @@ impl<C: Components> Musculotendon1D<C> {
             .fibre_length_of(path - unit.tendon.slack_length)
             .unwrap_or(l0);
         let mut kept = None;
-        let eq = solve_equilibrium(&unit, path, range, guess, self.tol(), |l_m| {
-            let u = solve_uniaxial_with::<C>(
-                &muscle.params,
-                l_m / l0,
-                a,
-                &FibreHistory::REST,
-                FibreRate::Isometric,
-                1.0,
-            )
-            .map_err(|e| Discard::Unsolvable(muscle.unsolvable(l_m, &e.0)))?;
-            let f = MuscleForce {
-                force: u.nominal_stress() * area,
-                stiffness: u.dnominal_dlambda() * area / l0,
-            };
-            kept = Some(u);
-            Ok(f)
-        })
+        let eq = solve_equilibrium(
+            &unit,
+            path,
+            range,
+            guess,
+            Tolerance::Fixed(self.tol()),
+            None,
+            |l_m| {
+                let u = solve_uniaxial_with::<C>(
+                    &muscle.params,
+                    l_m / l0,
+                    a,
+                    &FibreHistory::REST,
+                    FibreRate::Isometric,
+                    1.0,
+                )
+                .map_err(|e| Discard::Unsolvable(muscle.unsolvable(l_m, &e.0)))?;
+                let f = MuscleForce {
+                    force: u.nominal_stress() * area,
+                    stiffness: u.dnominal_dlambda() * area / l0,
+                };
+                kept = Some(u);
+                Ok(f)
+            },
+        )
         .map_err(|e| match unsolvable(e, path) {
             Discard::Unsolvable(s) => SetupError(s),
             other => SetupError(format!("{other:?}")),

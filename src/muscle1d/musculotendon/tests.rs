@@ -509,3 +509,27 @@ fn a_tight_tolerance_keeps_a_long_stiff_step_controlled() {
         assert!((c - f).abs() <= 1e-3 * f0, "{c} vs {f} (F0 = {f0})");
     }
 }
+
+/// A path whose equilibrium needs more than the tendon's rupture strain
+/// (`Tendon::max_strain`, 0.10 at ε0 = 0.04): in a step an error naming
+/// it, the unit exactly as before; at initialization an error.
+#[test]
+fn a_tendon_past_its_rupture_strain_is_refused() {
+    let mut mt = unit(0.04, 0.2, true);
+    mt.set_command(1.0);
+    mt.step(1e-3).unwrap();
+    let before = mt.clone();
+    // The fibres at their longest evaluable length leave the tendon
+    // 0.3 strain past its slack length: no equilibrium below rupture.
+    mt.set_path(mt.path() + 0.3 * 0.04 + 0.5);
+    let e = format!("{:?}", mt.step(1e-3).unwrap_err());
+    assert!(e.contains("rupture strain"), "{e}");
+    assert_eq!(mt.muscle.outputs, before.muscle.outputs);
+    assert_eq!(mt.outputs, before.outputs);
+    assert_eq!(mt.committed_path, before.committed_path);
+    // Initialization on such a path.
+    let mut fresh = unit(0.04, 0.2, true);
+    fresh.set_path(before.path() + 0.3 * 0.04 + 0.5);
+    let e = format!("{:?}", fresh.initialize().unwrap_err());
+    assert!(e.contains("rupture strain"), "{e}");
+}

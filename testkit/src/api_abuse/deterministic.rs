@@ -707,7 +707,7 @@ pub fn set_fmu_state_with_null_pointer_is_an_error_and_changes_nothing() {
     let step = |f: &Fmu, i: usize| unsafe {
         let h = 1e-3;
         let vrs = [t.activation, t.length];
-        let vals = [1.0, t.length0 * (1.0 + 0.01 * i as f64)];
+        let vals = [1.0, t.length0 + 0.01 * i as f64 * t.span];
         assert_eq!(
             (abi().set_real)(f.c, vrs.as_ptr(), 2, vals.as_ptr()),
             fmi2OK

@@ -283,7 +283,7 @@ pub fn every_parameter_at_either_bound_steps_and_round_trips() {
 /// input changes completes with `fmi2OK`, but the step predictor's history
 /// rate (a change divided by h) overflows to ±inf and is committed: the
 /// FMU's own serialized state is then rejected by `fmi2DeSerializeFMUstate`
-/// ("a non-finite value"). Inputs: defaults; length 1.2 × its start, `fmi2DoStep(0,
+/// ("a non-finite value"). Inputs: defaults; length its start + 0.2 of its span (`Table::span`), `fmi2DoStep(0,
 /// 0.01)`; length its start, `fmi2DoStep(0.01, 5e-324)` → `fmi2OK`; serialize →
 /// deserialize. Expected: `fmi2OK` (or the step refused or discarded with
 /// a message). Was: `fmi2Error` (fixed: a rate that overflows is not committed, and a step whose partial derivatives are not finite is discarded).
@@ -295,7 +295,7 @@ pub fn tiny_step_leaves_a_serializable_state() {
         set_integers(f.c, profile().cheap_integers).unwrap();
         assert_eq!((abi().exit_initialization_mode)(f.c), fmi2OK);
         assert_eq!(
-            (abi().set_real)(f.c, &t.length, 1, &(1.2 * t.length0)),
+            (abi().set_real)(f.c, &t.length, 1, &(t.length0 + 0.2 * t.span)),
             fmi2OK
         );
         assert_eq!((abi().do_step)(f.c, 0.0, 0.01, 0), fmi2OK);

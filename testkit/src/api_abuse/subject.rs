@@ -300,6 +300,12 @@ pub(crate) struct Table {
     /// its rest length `L0`; for a musculotendon unit, whose length is its
     /// whole path, the rest path (tendon slack length plus the fibres).
     pub(crate) length0: f64,
+    /// The length change that stretches the muscle by its rest length: the
+    /// lengths that step an active subject far (`l0 + x span`) are measured
+    /// in it. For a muscle, `length0`; for a unit, the rest path less the
+    /// tendon's slack length, so that such a step stretches the fibres and
+    /// not the tendon past its rupture strain.
+    pub(crate) span: f64,
 }
 
 pub(crate) fn table() -> &'static Table {
@@ -334,7 +340,15 @@ pub(crate) fn table() -> &'static Table {
             VarType::Real { start: Some(s), .. } => s,
             other => panic!("length: {other:?}"),
         };
+        let span = vars
+            .iter()
+            .find(|v| v.name == "tendon_slack_length")
+            .map_or(length0, |v| match v.ty {
+                VarType::Real { start: Some(s), .. } => length0 - s,
+                other => panic!("tendon_slack_length: {other:?}"),
+            });
         Table {
+            span,
             activation: vr_of("activation"),
             length: vr_of("length"),
             guid: CString::new((installed().guid)()).unwrap(),

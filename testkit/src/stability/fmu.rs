@@ -203,6 +203,19 @@ impl<M: Model> Fmu<M> {
             .map(|_| t)
     }
 
+    /// The model's own serialized state (`Model::serialize`, without the FMI
+    /// layer's state): read only, like [`Fmu::stats`], for a test that an
+    /// instance is exactly as before.
+    pub fn model_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        // SAFETY: live instance of `M`; read only, between FMI calls on
+        // this thread.
+        if let Some(inst) = unsafe { Instance::<M>::from_component(self.c) } {
+            inst.model.serialize(&mut out);
+        }
+        out
+    }
+
     pub fn stats(&self, hook: Option<fn(&M) -> StepStats>) -> StepStats {
         if let Some(f) = hook {
             // SAFETY: live instance of `M`; read only, between FMI calls on

@@ -33,6 +33,13 @@
 //! every step size that divides the grid, and the run at h/100 solves the
 //! same continuous problem, only with smaller steps.
 //!
+//! A musculotendon unit's `length` is its whole path: its program is the
+//! same capped inside the unit's physical range (below where the relaxed
+//! fibres carry F0, far short of the tendon's rupture), and its stretch is
+//! the relaxed unit's fibre stretch, the path its fibres' share (`unit`:
+//! [`program_of`], [`UnitPath`]); the path is interpolated linearly between
+//! the program's breakpoints.
+//!
 //! The master is an ordinary one: fmi2GetFMUstate before every step (into one
 //! reused state); after an fmi2Discard it checks
 //! fmi2GetRealStatus(fmi2LastSuccessfulTime), restores the state and retries
@@ -62,6 +69,7 @@ use hill_muscle::fmus::hillfe::HillFE;
 use hill_muscle::fmus::musculotendon1d::Musculotendon;
 #[cfg(feature = "fe")]
 use hill_muscle::fmus::musculotendonfe::MusculotendonFe;
+use hill_muscle::law::musculotendon::UnitParams;
 use hill_muscle::law::{ParamId, Params};
 
 use crate::logger::{callbacks, LogBook};
@@ -70,8 +78,10 @@ mod fmu;
 mod grid;
 mod models;
 mod run;
+mod unit;
 
 pub use fmu::*;
 pub use grid::*;
 pub use models::*;
 pub use run::*;
+pub use unit::*;

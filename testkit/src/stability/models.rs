@@ -53,8 +53,10 @@ pub struct Hooks<M> {
     /// many steps.
     pub fine_budget: usize,
     /// `Some(L_TS)`: a musculotendon unit, whose `length` input is its path:
-    /// `tendon_slack_length` is set to L_TS and the program's length
-    /// stretch · L0 is the fibres' share of the path, L_TS + stretch · L0.
+    /// `tendon_slack_length` is set to L_TS, the program is capped inside
+    /// the unit's physical range and its stretch is the relaxed unit's fibre
+    /// stretch, the path its fibres' share (`unit`: [`program_of`],
+    /// [`UnitPath`]).
     pub tendon_slack_length: Option<f64>,
     /// The two outputs recorded and compared with the run at h / [`FINE_FACTOR`].
     pub compared: [&'static str; 2],

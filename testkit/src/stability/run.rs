@@ -219,20 +219,31 @@ pub(crate) fn execute_inner<M: Model>(
         fmu.set_real(Params::info(id).name, v)?;
     }
     fmu.set_real("L0", l0)?;
-    // A unit's length input is its path: the tendon, then the fibres' share.
-    let offset = match checker.hooks.tendon_slack_length {
+    // A unit's length input is its path: the path at each breakpoint of
+    // the program, by the fibres' share (`unit`; the tendon's strain at F0
+    // and the pennation angle at the FMU's start values, which the harness
+    // does not set).
+    let unit_paths = match checker.hooks.tendon_slack_length {
         Some(lts) => {
             fmu.set_real("tendon_slack_length", lts)?;
-            lts
+            let tendon = UnitParams::default();
+            let map = UnitPath::new(
+                &checker.params,
+                l0,
+                lts,
+                tendon.tendon_strain_at_f0,
+                tendon.pennation_angle,
+            );
+            Some(map.breakpoints(prog))
         }
-        None => 0.0,
-    };
-    let path = |stretch: f64| match checker.hooks.tendon_slack_length {
-        Some(_) => offset + stretch * l0,
-        None => stretch * l0,
+        None => None,
     };
     fmu.set_real("initial_activation", prog.initial_activation)?;
-    fmu.set_inputs(prog.command0, path(prog.stretch0))?;
+    let length0 = match &unit_paths {
+        Some(paths) => paths[0],
+        None => prog.stretch0 * l0,
+    };
+    fmu.set_inputs(prog.command0, length0)?;
     fmu.initialize()?;
     run.names = fmu.out_names.clone();
     let idx = |name: &str| {
@@ -259,8 +270,10 @@ pub(crate) fn execute_inner<M: Model>(
     }
     let h = cell.h / m as f64;
     let n_total = prog.steps.len() * m;
-    // The signal at fine step i (0-based): command and stretch at its end.
-    let signal = |i: usize, frac: f64| -> (f64, f64) {
+    // The signal at fine step i (0-based), `frac` of the way through it:
+    // the command, the stretch and the length (a muscle's stretch · L0; a
+    // unit's path interpolated linearly between the program's breakpoints).
+    let signal = |i: usize, frac: f64| -> (f64, f64, f64) {
         let n = i / m;
         let s = prog.steps[n];
         let from = if n == 0 {
@@ -274,7 +287,12 @@ pub(crate) fn execute_inner<M: Model>(
         } else {
             from + (s.stretch - from) * x
         };
-        (s.command, stretch)
+        let length = match &unit_paths {
+            None => stretch * l0,
+            Some(paths) if x >= 1.0 => paths[n + 1],
+            Some(paths) => paths[n] + (paths[n + 1] - paths[n]) * x,
+        };
+        (s.command, stretch, length)
     };
     for i in 0..n_total {
         watch.beat();
@@ -282,9 +300,9 @@ pub(crate) fn execute_inner<M: Model>(
             return Ok(Outcome::Timeout { t: i as f64 * h });
         }
         let t = i as f64 * h;
-        let (u, stretch) = signal(i, 1.0);
+        let (u, stretch, length) = signal(i, 1.0);
         fmu.save()?;
-        fmu.set_inputs(u, path(stretch))?;
+        fmu.set_inputs(u, length)?;
         let (st, msg) = fmu.step(t, h);
         match st {
             fmi2OK => {}
@@ -307,8 +325,8 @@ pub(crate) fn execute_inner<M: Model>(
                         if Instant::now() > watch.deadline {
                             return Ok(Outcome::Timeout { t });
                         }
-                        let (u, s) = signal(i, (k + 1) as f64 / pieces as f64);
-                        fmu.set_inputs(u, path(s))?;
+                        let (u, _, length) = signal(i, (k + 1) as f64 / pieces as f64);
+                        fmu.set_inputs(u, length)?;
                         let hp = h / pieces as f64;
                         let (st, _) = fmu.step(t + k as f64 * hp, hp);
                         if st != fmi2OK {
@@ -406,7 +424,7 @@ pub fn run_cell_named<M: Model>(
     watch: &Watch,
     hooks: &Hooks<M>,
 ) -> CellResult {
-    let prog = program(cell.scenario, cell.h);
+    let prog = program_of(cell, hooks);
     let checker = Checker {
         hooks,
         params: cell.law(),
@@ -593,7 +611,13 @@ pub fn threads() -> usize {
 /// messages name their cause); `None`: not explained. A model that joins the
 /// matrix adds the causes its own messages name.
 pub fn explain(message: &str) -> Option<&'static str> {
-    const CAUSES: [(&str, &str); 6] = [
+    const CAUSES: [(&str, &str); 7] = [
+        (
+            "past the tendon's rupture strain",
+            "a musculotendon unit's path that needs its tendon past its rupture strain \
+             (2.5 tendon_strain_at_F0, Butler et al. 1978): the unit refuses it with fmi2Discard, its state \
+             unchanged; the capped programs stay short of it (`unit`)",
+        ),
         (
             "the volume change",
             "the law's own limit with a soft volumetric term: with a large D (bulk modulus 2/D) against \
