@@ -665,7 +665,7 @@ pub fn null_component_environment_is_passed_to_the_logger() {
         assert_eq!((abi().enter_initialization_mode)(c), fmi2OK);
         set_integers(c, profile().cheap_integers).unwrap();
         assert_eq!((abi().exit_initialization_mode)(c), fmi2OK);
-        let (vrs, vals) = ([t.activation, t.length], [1.0, 1.05 * t.length0]);
+        let (vrs, vals) = ([t.activation, t.length], [1.0, t.length0 + 0.05 * t.span]);
         assert_eq!((abi().set_real)(c, vrs.as_ptr(), 2, vals.as_ptr()), fmi2OK);
         assert_eq!((abi().do_step)(c, 0.0, 1e-3, fmi2True), fmi2OK);
         assert_eq!(

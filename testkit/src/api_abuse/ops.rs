@@ -185,7 +185,7 @@ pub(crate) fn expand(op: &Op) -> Vec<Op> {
         Op::Run { n, h, tc, amp, act } => (0..*n)
             .flat_map(|i| {
                 let phase = 2.0 * std::f64::consts::PI * i as f64 / 40.0;
-                let length = t.length0 * (1.0 + amp * phase.sin());
+                let length = t.length0 + amp * phase.sin() * t.span;
                 [
                     Op::Call(set_real(vec![t.activation, t.length], vec![*act, length])),
                     Op::Step {

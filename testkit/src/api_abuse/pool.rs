@@ -255,7 +255,7 @@ pub(crate) fn pool() -> &'static Vec<Vec<u8>> {
                 c,
                 vrs.as_ptr(),
                 2,
-                [0.3, 1.1 * t.length0].as_ptr(),
+                [0.3, t.length0 + 0.1 * t.span].as_ptr(),
             ));
             pool[P_IM] = f.state_bytes().unwrap();
             ok((abi().exit_initialization_mode)(c));
@@ -264,7 +264,7 @@ pub(crate) fn pool() -> &'static Vec<Vec<u8>> {
                 c,
                 vrs.as_ptr(),
                 2,
-                [1.0, 1.04 * t.length0].as_ptr(),
+                [1.0, t.length0 + 0.04 * t.span].as_ptr(),
             ));
             let mut tc = 0.0;
             for _ in 0..20 {
