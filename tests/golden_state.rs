@@ -145,6 +145,6 @@ fn fe_musculotendon_scene_state_is_unchanged() {
     use hill_muscle::fmus::musculotendonfe::MusculotendonFEModel;
     check(
         &[golden::<MusculotendonFEModel<HillMusculotendonFE>>(12)],
-        &[("HillMusculotendonFE", 205695, 0x2c5b15f70236cb0f)],
+        &[("HillMusculotendonFE", 205695, 0xdf904e6f80cbd4b2)],
     );
 }

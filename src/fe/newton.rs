@@ -4,7 +4,9 @@
 //! contracts fast ([`crate::fe::tangent`]) and formed afresh at the current
 //! iterate when it stops paying: when an iteration contracts the correction
 //! by less than [`REFRESH_CONTRACTION`], after [`REFRESH_ITERATIONS`]
-//! iterations, or when a stale correction does not decrease the residual.
+//! iterations unless its contraction reaches the tolerance within
+//! [`REFRESH_REACH`] more, or when a stale correction does not decrease the
+//! residual.
 //! With a tangent formed at the iterate it is Newton's method with a
 //! backtracking line search.
 //!
@@ -114,6 +116,9 @@ const MIN_LINE_SEARCH: f64 = 1.0 / 256.0;
 /// A step that has taken this many iterations with a reused tangent forms it
 /// afresh.
 pub const REFRESH_ITERATIONS: usize = 4;
+/// ... unless its contraction θ reaches the tolerance within this many
+/// more iterations (the error estimate θ^k/(1 − θ) × the correction).
+pub const REFRESH_REACH: usize = 2;
 /// An iteration with a tangent formed at its iterate that contracts the
 /// correction by no more than this (STALL_CONTRACTION < θ ≤ 1: a line search
 /// cut to a small α, or a residual barely decreasing) makes no progress
@@ -423,7 +428,8 @@ impl Discretization {
     ///
     /// With [`Mode::Reuse`] the tangent is formed afresh at the current
     /// iterate when θ exceeds [`REFRESH_CONTRACTION`], after
-    /// [`REFRESH_ITERATIONS`] iterations with a reused tangent, or when a
+    /// [`REFRESH_ITERATIONS`] iterations with a reused tangent (unless θ
+    /// reaches the tolerance within [`REFRESH_REACH`] more), or when a
     /// reused tangent fails the test; with a tangent formed at the iterate,
     /// α is halved down to [`MIN_LINE_SEARCH`]. Convergence:
     /// [`Self::converged`]; at the first correction with the contraction
@@ -641,7 +647,14 @@ impl Discretization {
                     theta = Some(th);
                     reused = if fresh { 0 } else { reused + 1 };
                     fresh = false;
-                    th > REFRESH_CONTRACTION || reused >= REFRESH_ITERATIONS
+                    // By count only when the contraction would not reach
+                    // the tolerance within REFRESH_REACH more solves, each
+                    // far cheaper than a tangent and its factorisation.
+                    let within_reach = || {
+                        let left = th.powi(REFRESH_REACH as i32) / (1.0 - th);
+                        self.error_within(p, &ev, &dx, left, t, input.tolerance)
+                    };
+                    th > REFRESH_CONTRACTION || (reused >= REFRESH_ITERATIONS && !within_reach())
                 }
                 // A reused tangent that fails the test: form it here.
                 None => true,
