@@ -145,6 +145,6 @@ fn fe_musculotendon_scene_state_is_unchanged() {
     use hill_muscle::fmus::musculotendonfe::MusculotendonFEModel;
     check(
         &[golden::<MusculotendonFEModel<HillMusculotendonFE>>(12)],
-        &[("HillMusculotendonFE", 205695, 0x2c5b15f70236cb0f)],
+        &[("HillMusculotendonFE", 205719, 0xfc8e4708584a27af)],
     );
 }
