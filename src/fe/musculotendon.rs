@@ -11,8 +11,8 @@
 //! [`solve_equilibrium`], F_M(L_M) being the axial force after the FE step
 //! map from the committed state to end length L_M ([`Committed::step`], its
 //! substeps and error control included). The scalar solve costs a few FE
-//! solves: its first trial is L_M predicted from the last step
-//! (dL_M/dℓ·Δℓ and the rates), its slope dF_M/dL_M the last step's secant
+//! solves: its first trial is L_M extrapolated from the last two steps
+//! ([`Guess::trial`]: second order in the step), its slope dF_M/dL_M the last step's secant
 //! (Newton's slope only: the partials use the consistent tangent); each
 //! later trial of a step taken in one piece starts its Newton iteration
 //! from the previous trial's solution moved by ∂x/∂L·ΔL ([`warm_step`]).
@@ -72,15 +72,78 @@ pub enum UnitOutput {
 pub const N_UNIT: usize = 5;
 
 /// What the next step's first trial extrapolates from: dL_M/dℓ of the last
-/// step, its rates of L_M and of the path (m/s; 0 after initialization)
-/// and its slope dF_M/dL_M (N/m). They change the cost, not the result
-/// beyond the equilibrium's tolerance.
+/// step; the mean rates of L_M and of the path over the last step (m/s)
+/// with their changes from the step before (m/s²) and that step's length
+/// `span` (s; 0 after initialization, when the rates and their changes are
+/// 0); and Newton's slope dF_M/dL_M (N/m). They change the cost, not the
+/// result beyond the equilibrium's tolerance.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Guess {
     pub slope: f64,
     pub fibre_rate: f64,
     pub path_rate: f64,
     pub stiffness: f64,
+    pub fibre_accel: f64,
+    pub path_accel: f64,
+    pub span: f64,
+}
+
+impl Guess {
+    /// The guess after a step of length `h` that moved L_M by `dfibre` and
+    /// the path by `dpath`: the mean rates over it, and their change from
+    /// the last step's per time between the two steps' midpoints. A step so
+    /// short that a change over it overflows (h = 5e-324) leaves no rates:
+    /// the next step guesses as after initialization.
+    fn after(&self, h: f64, dfibre: f64, dpath: f64) -> Guess {
+        let (fibre_rate, path_rate) = (dfibre / h, dpath / h);
+        let (fibre_accel, path_accel) = if self.span > 0.0 {
+            let mid = 0.5 * (h + self.span);
+            (
+                (fibre_rate - self.fibre_rate) / mid,
+                (path_rate - self.path_rate) / mid,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        let next = Guess {
+            fibre_rate,
+            path_rate,
+            fibre_accel,
+            path_accel,
+            span: h,
+            ..*self
+        };
+        if [fibre_rate, path_rate, fibre_accel, path_accel]
+            .iter()
+            .all(|x| x.is_finite())
+        {
+            next
+        } else {
+            Guess {
+                slope: self.slope,
+                stiffness: self.stiffness,
+                ..Guess::default()
+            }
+        }
+    }
+
+    /// The first trial's L_M for a step of length `h` from fibre length
+    /// `fibre` that moves the path by `dpath`: L_M's change extrapolated
+    /// (its rate linear in time through the last two steps' mean rates),
+    /// plus dL_M/dℓ times the path's change beyond the path's own
+    /// extrapolation — second order in the step for smooth inputs. The
+    /// rates' changes are used only for a step within a factor 2 of the
+    /// last (beyond, the rates alone: first order).
+    fn trial(&self, h: f64, fibre: f64, dpath: f64) -> f64 {
+        let near = self.span > 0.0 && (0.5..=2.0).contains(&(h / self.span));
+        let change = |rate: f64, accel: f64| {
+            let accel = if near { accel } else { 0.0 };
+            h * (rate + 0.5 * accel * (h + self.span))
+        };
+        fibre
+            + change(self.fibre_rate, self.fibre_accel)
+            + self.slope * (dpath - change(self.path_rate, self.path_accel))
+    }
 }
 
 /// The unit after a step or initialization.
@@ -340,7 +403,7 @@ impl MusculotendonFE {
         let h = level.h;
         let g = &self.guess;
         let l_now = self.outputs[UnitOutput::FibreLength as usize];
-        let predicted = l_now + g.fibre_rate * h + g.slope * ((path - self.path) - g.path_rate * h);
+        let predicted = g.trial(h, l_now, path - self.path);
         let mut t = Trials::new(g.stiffness);
         let eq = solve_equilibrium(
             s.unit,
@@ -374,20 +437,7 @@ impl MusculotendonFE {
         );
         let st = t.kept.take().expect("the equilibrium evaluates the muscle");
         let l_end = st.state.muscle.length;
-        // A step so short that a change over it overflows (h = 5e-324)
-        // leaves no rates: the next step guesses as after initialization.
-        let (fibre_rate, path_rate) = ((l_end - l_now) / h, (path - self.path) / h);
-        let finite = fibre_rate.is_finite() && path_rate.is_finite();
-        let guess = Guess {
-            slope: g.slope,
-            fibre_rate: if finite { fibre_rate } else { 0.0 },
-            path_rate: if finite { path_rate } else { 0.0 },
-            stiffness: if t.slope.is_finite() {
-                t.slope
-            } else {
-                g.stiffness
-            },
-        };
+        let guess = g.after(h, l_end - l_now, path - self.path);
         let mut done = Self::finish(s, path, st, t, guess);
         if done.outputs.iter().any(|x| !x.is_finite()) {
             return Err(StepFailure::NonFiniteOutput { length: l_end });

@@ -505,3 +505,36 @@ fn a_slack_drop_activated_stays_near_the_root() {
     assert!(next.iterations <= 500, "{}", next.iterations);
     assert!(next.trials <= 16, "{}", next.trials);
 }
+
+/// Steady stepping takes one FE step map plus at most one correction in
+/// the common case: on a passive and an activated pull (5 mm/s at h = 1
+/// ms), after the first few steps, at most two trials per step on average,
+/// nine steps in ten by the second trial, none past the fourth; the first
+/// trial being L_M extrapolated to second order ([`Guess::trial`]), the
+/// second its Newton correction with the last step's secant.
+#[test]
+fn steady_pulls_take_at_most_two_trials_per_step() {
+    let p = Params::default();
+    for (a, h, n) in [(0.0, H, 200), (1.0, H, 200)] {
+        let u = unit(0.04, 0.0, true);
+        let s = setup(&p, &u);
+        let path0 = 0.1 + L0;
+        let mut mt = MusculotendonFE::initialize(disc(), &s, path0, a, 1.0).unwrap();
+        let mut trials = Vec::with_capacity(n);
+        for k in 1..=n {
+            let lv = StepLevel::new(false, p.s, mt.muscle.last.activation, a, 0.0, h, 1.0);
+            mt = mt.step(&s, lv, path0 + 5e-3 * h * k as f64, None).unwrap();
+            trials.push(mt.trials);
+        }
+        let steady = &trials[3..];
+        let mean = steady.iter().sum::<u32>() as f64 / steady.len() as f64;
+        let more = steady.iter().filter(|&&t| t > 2).count();
+        let worst = steady.iter().max().copied().unwrap_or(0);
+        eprintln!(
+            "a = {a}, h = {h}: {mean:.3} trials per step after the first 3, {more} steps with 3 or more, at most {worst}"
+        );
+        assert!(mean <= 2.0, "a = {a}, h = {h}: {trials:?}");
+        assert!(10 * more <= steady.len(), "a = {a}, h = {h}: {trials:?}");
+        assert!(worst <= 4, "a = {a}, h = {h}: {trials:?}");
+    }
+}

@@ -62,8 +62,9 @@ wire_struct! {
         /// The path length at the end of the last step.
         path: f64,
         /// The next step's first guess: dL_M/dℓ, the fibre and path rates,
-        /// Newton's slope.
-        guess: [f64; 4],
+        /// Newton's slope, the rates' changes and the last step's length
+        /// ([`Guess`] order).
+        guess: [f64; 7],
         /// Force, stress, fibre length, tendon strain, pennation.
         outputs: [f64; N_UNIT],
         iterations: u64,
@@ -84,6 +85,9 @@ pub(super) fn encode<S: Scene>(m: &MusculotendonFEModel<S>, out: &mut Vec<u8>) {
             u.guess.fibre_rate,
             u.guess.path_rate,
             u.guess.stiffness,
+            u.guess.fibre_accel,
+            u.guess.path_accel,
+            u.guess.span,
         ],
         outputs: u.outputs,
         iterations: u.iterations as u64,
@@ -198,6 +202,9 @@ fn restore_unit(u: UnitState, p: &Params) -> Result<MusculotendonFE, String> {
             fibre_rate: u.guess[1],
             path_rate: u.guess[2],
             stiffness: u.guess[3],
+            fibre_accel: u.guess[4],
+            path_accel: u.guess[5],
+            span: u.guess[6],
         },
         outputs: u.outputs,
         iterations: usize::try_from(u.iterations).map_err(|e| e.to_string())?,
