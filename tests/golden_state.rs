@@ -145,6 +145,6 @@ fn fe_musculotendon_scene_state_is_unchanged() {
     use hill_muscle::fmus::musculotendonfe::MusculotendonFEModel;
     check(
         &[golden::<MusculotendonFEModel<HillMusculotendonFE>>(12)],
-        &[("HillMusculotendonFE", 205695, 0xdf904e6f80cbd4b2)],
+        &[("HillMusculotendonFE", 205719, 0x6b9b20a74201c33c)],
     );
 }
