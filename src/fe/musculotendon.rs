@@ -36,7 +36,7 @@ use crate::fe::step_map::{
 };
 use crate::fe::tangent::{Increment, Trend};
 use crate::law::musculotendon::{
-    solve_equilibrium, EquilibriumError, MuscleForce, Tolerance, Unit, TRUST,
+    solve_equilibrium, EquilibriumError, MuscleForce, StepRates, Tolerance, Unit, TRUST,
 };
 use crate::law::pennation::MIN_COS;
 use crate::law::tendon::RUPTURE_STRAIN_RATIO;
@@ -72,58 +72,24 @@ pub enum UnitOutput {
 pub const N_UNIT: usize = 5;
 
 /// What the next step's first trial extrapolates from: dL_M/dℓ of the last
-/// step; the mean rates of L_M and of the path over the last step (m/s)
-/// with their changes from the step before (m/s²) and that step's length
-/// `span` (s; 0 after initialization, when the rates and their changes are
-/// 0); and Newton's slope dF_M/dL_M (N/m). They change the cost, not the
-/// result beyond the equilibrium's tolerance.
+/// step (`slope`), the rates of L_M (m/s) and of the path ([`StepRates`]), and
+/// Newton's slope dF_M/dL_M (`stiffness`, N/m). They change the cost, not
+/// the result beyond the equilibrium's tolerance.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Guess {
     pub slope: f64,
-    pub fibre_rate: f64,
-    pub path_rate: f64,
     pub stiffness: f64,
-    pub fibre_accel: f64,
-    pub path_accel: f64,
-    pub span: f64,
+    pub rates: StepRates,
 }
 
 impl Guess {
     /// The guess after a step of length `h` that moved L_M by `dfibre` and
-    /// the path by `dpath`: the mean rates over it, and their change from
-    /// the last step's per time between the two steps' midpoints. A step so
-    /// short that a change over it overflows (h = 5e-324) leaves no rates:
-    /// the next step guesses as after initialization.
+    /// the path by `dpath` ([`StepRates::after`]; no rates after a step too short
+    /// to give them).
     fn after(&self, h: f64, dfibre: f64, dpath: f64) -> Guess {
-        let (fibre_rate, path_rate) = (dfibre / h, dpath / h);
-        let (fibre_accel, path_accel) = if self.span > 0.0 {
-            let mid = 0.5 * (h + self.span);
-            (
-                (fibre_rate - self.fibre_rate) / mid,
-                (path_rate - self.path_rate) / mid,
-            )
-        } else {
-            (0.0, 0.0)
-        };
-        let next = Guess {
-            fibre_rate,
-            path_rate,
-            fibre_accel,
-            path_accel,
-            span: h,
+        Guess {
+            rates: self.rates.after(h, dfibre, dpath).unwrap_or_default(),
             ..*self
-        };
-        if [fibre_rate, path_rate, fibre_accel, path_accel]
-            .iter()
-            .all(|x| x.is_finite())
-        {
-            next
-        } else {
-            Guess {
-                slope: self.slope,
-                stiffness: self.stiffness,
-                ..Guess::default()
-            }
         }
     }
 
@@ -135,14 +101,12 @@ impl Guess {
     /// rates' changes are used only for a step within a factor 2 of the
     /// last (beyond, the rates alone: first order).
     fn trial(&self, h: f64, fibre: f64, dpath: f64) -> f64 {
-        let near = self.span > 0.0 && (0.5..=2.0).contains(&(h / self.span));
-        let change = |rate: f64, accel: f64| {
-            let accel = if near { accel } else { 0.0 };
-            h * (rate + 0.5 * accel * (h + self.span))
-        };
+        let t = &self.rates;
+        let near = t.span > 0.0 && (0.5..=2.0).contains(&(h / t.span));
+        let change = |rate: f64, accel: f64| t.change(rate, if near { accel } else { 0.0 }, 0.0, h);
         fibre
-            + change(self.fibre_rate, self.fibre_accel)
-            + self.slope * (dpath - change(self.path_rate, self.path_accel))
+            + change(t.fibre_rate, t.fibre_accel)
+            + self.slope * (dpath - change(t.path_rate, t.path_accel))
     }
 }
 

@@ -645,5 +645,66 @@ fn finish(pt: Point, evaluations: u32) -> Equilibrium {
     }
 }
 
+/// What a unit's next first trial extrapolates from (both units, MODEL_NOTES
+/// "Musculotendon unit", the step's equilibrium): the mean rates of the
+/// fibres' length (or stretch) and of the path over the last step, their
+/// changes from the step before per time between the two steps' midpoints,
+/// and that step's length `span` (s; 0 after initialization, when the rates
+/// and their changes are 0). They change a step's cost, not its result
+/// beyond the equilibrium's tolerance.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepRates {
+    pub fibre_rate: f64,
+    pub path_rate: f64,
+    pub fibre_accel: f64,
+    pub path_accel: f64,
+    pub span: f64,
+}
+
+impl StepRates {
+    /// The rates after a step of length `h` that moved the fibres by
+    /// `dfibre` and the path by `dpath`; `None` for a step so short that a
+    /// change over it overflows (h = 5e-324): the next step then guesses as
+    /// after initialization.
+    pub fn after(&self, h: f64, dfibre: f64, dpath: f64) -> Option<StepRates> {
+        let (fibre_rate, path_rate) = (dfibre / h, dpath / h);
+        let (fibre_accel, path_accel) = if self.span > 0.0 {
+            let mid = 0.5 * (h + self.span);
+            (
+                (fibre_rate - self.fibre_rate) / mid,
+                (path_rate - self.path_rate) / mid,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        let next = StepRates {
+            fibre_rate,
+            path_rate,
+            fibre_accel,
+            path_accel,
+            span: h,
+        };
+        [fibre_rate, path_rate, fibre_accel, path_accel]
+            .iter()
+            .all(|x| x.is_finite())
+            .then_some(next)
+    }
+
+    /// The change from `t0` to `t1` (s into the step) of a quantity whose
+    /// rate was `rate` at the last step's midpoint and changes by `accel`
+    /// per second: the integral of the rate extrapolated linearly.
+    pub fn change(&self, rate: f64, accel: f64, t0: f64, t1: f64) -> f64 {
+        (t1 - t0) * (rate + 0.5 * accel * (t0 + t1 + self.span))
+    }
+
+    /// The fibres' and the path's changes from `t0` to `t1`.
+    pub fn changes(&self, t0: f64, t1: f64) -> (f64, f64) {
+        (
+            self.change(self.fibre_rate, self.fibre_accel, t0, t1),
+            self.change(self.path_rate, self.path_accel, t0, t1),
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests;

@@ -27,7 +27,7 @@ use super::muscle::Muscle1D;
 use super::outputs::{Input, Jacobian, IN_ACTIVATION, IN_LENGTH, N_IN, N_OUT};
 use super::step::{combine, PieceEnd, Solved, StepStatistics, Stepped};
 use crate::law::musculotendon::{
-    solve_equilibrium, EquilibriumError, MuscleForce, Tolerance, Unit, UnitParams,
+    solve_equilibrium, EquilibriumError, MuscleForce, StepRates, Tolerance, Unit, UnitParams,
 };
 use crate::law::params::LENGTH_RANGE;
 use crate::law::uniaxial::{evaluable_stretch_range, Sensitivity};
@@ -95,63 +95,26 @@ impl PartialEq for Diagnostic {
 }
 
 /// What the first guess of a piece's fibre stretch extrapolates from: the
-/// last step's dλ/dℓ, and the mean rates of λ and of the path over the
-/// last step (1/s, m/s) with their changes from the step before (1/s², m/s²)
-/// and that step's length `span` (s; 0 after initialization, when the
-/// rates and their changes are 0).
+/// last step's dλ/dℓ (`slope`), and the rates of λ (1/s) and of the path
+/// ([`StepRates`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Guess {
     pub(crate) slope: f64,
-    pub(crate) fibre_rate: f64,
-    pub(crate) path_rate: f64,
-    pub(crate) fibre_accel: f64,
-    pub(crate) path_accel: f64,
-    pub(crate) span: f64,
+    pub(crate) rates: StepRates,
 }
 
 impl Guess {
     /// The guess after a step of length `h` that moved λ by `dlambda` and
-    /// the path by `dpath`: the mean rates over it, and their change from
-    /// the last step's per time between the two steps' midpoints.
+    /// the path by `dpath`, with the step's dλ/dℓ `slope`; a step too short
+    /// to give rates leaves none ([`StepRates::after`]).
     fn after(&self, slope: f64, h: f64, dlambda: f64, dpath: f64) -> Guess {
-        let (fibre_rate, path_rate) = (dlambda / h, dpath / h);
-        let (fibre_accel, path_accel) = if self.span > 0.0 {
-            let mid = 0.5 * (h + self.span);
-            (
-                (fibre_rate - self.fibre_rate) / mid,
-                (path_rate - self.path_rate) / mid,
-            )
-        } else {
-            (0.0, 0.0)
-        };
-        let guess = Guess {
-            slope,
-            fibre_rate,
-            path_rate,
-            fibre_accel,
-            path_accel,
-            span: h,
-        };
-        // A step so short that a change over it overflows (h = 5e-324)
-        // leaves no rates: the next step guesses as after initialization.
-        if [fibre_rate, path_rate, fibre_accel, path_accel]
-            .iter()
-            .all(|x| x.is_finite())
-        {
-            guess
-        } else {
-            Guess {
+        match self.rates.after(h, dlambda, dpath) {
+            Some(rates) => Guess { slope, rates },
+            None => Guess {
                 slope: if slope.is_finite() { slope } else { 0.0 },
-                ..Guess::default()
-            }
+                rates: StepRates::default(),
+            },
         }
-    }
-
-    /// The change of a quantity from `t0` to `t1` (s into the step) whose
-    /// rate was `rate` at the last step's midpoint and changes by `accel`
-    /// per second: the integral of the rate extrapolated linearly.
-    fn change(&self, rate: f64, accel: f64, t0: f64, t1: f64) -> f64 {
-        (t1 - t0) * (rate + 0.5 * accel * (t0 + t1 + self.span))
     }
 }
 
@@ -223,8 +186,7 @@ impl PieceEnd for PathEnds<'_> {
         let g = &self.guess;
         let (t0, t1) = (from * self.h, frac * self.h);
         let dpath = self.path(frac, last) - self.path(from, false);
-        let fibre = g.change(g.fibre_rate, g.fibre_accel, t0, t1);
-        let path = g.change(g.path_rate, g.path_accel, t0, t1);
+        let (fibre, path) = g.rates.changes(t0, t1);
         lambda + fibre + g.slope * (dpath - path)
     }
 

@@ -436,7 +436,7 @@ fn a_tiny_step_leaves_a_finite_guess() {
         .step(&s, tiny, 0.9 * rest, None)
         .expect("a tiny step to slack completes");
     let g = next.guess;
-    for x in [g.slope, g.fibre_rate, g.path_rate, g.stiffness] {
+    for x in [g.slope, g.rates.fibre_rate, g.rates.path_rate, g.stiffness] {
         assert!(x.is_finite(), "{g:?}");
     }
     next.step(&s, level(&p, 0.0, 0.0), rest, None).unwrap();

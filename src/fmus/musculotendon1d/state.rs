@@ -12,6 +12,7 @@ use crate::fmus::codec::{
     check_output, check_scene_constants, decode_from, encode_onto, wire_struct, MaybeF64,
 };
 use crate::fmus::hill1d::state::{check_force, muscle_state, restore_muscle, Hill1DState};
+use crate::law::musculotendon::StepRates;
 use crate::law::params::{L0_RANGE, TENDON_PARAMETERS};
 use crate::law::pennation::MIN_COS;
 use crate::law::Components;
@@ -57,11 +58,11 @@ pub(super) fn encode<S: Scene>(m: &MusculotendonModel<S>, out: &mut Vec<u8>) {
         committed_path: u.committed_path,
         guess: [
             u.guess.slope,
-            u.guess.fibre_rate,
-            u.guess.path_rate,
-            u.guess.fibre_accel,
-            u.guess.path_accel,
-            u.guess.span,
+            u.guess.rates.fibre_rate,
+            u.guess.rates.path_rate,
+            u.guess.rates.fibre_accel,
+            u.guess.rates.path_accel,
+            u.guess.rates.span,
         ],
         outputs: u.outputs,
         dforce: u.dforce,
@@ -108,11 +109,13 @@ fn restore<S: Scene>(s: MusculotendonState) -> Result<MusculotendonModel<S>, Str
     u.committed_path = committed_path;
     u.guess = Guess {
         slope: guess[0],
-        fibre_rate: guess[1],
-        path_rate: guess[2],
-        fibre_accel: guess[3],
-        path_accel: guess[4],
-        span: guess[5],
+        rates: StepRates {
+            fibre_rate: guess[1],
+            path_rate: guess[2],
+            fibre_accel: guess[3],
+            path_accel: guess[4],
+            span: guess[5],
+        },
     };
     u.outputs = outputs;
     u.dforce = dforce;

@@ -20,6 +20,7 @@ use crate::fmus::hillfe::state::{
 };
 use crate::fmus::musculotendon1d::state::check_tendon_outputs;
 use crate::law::activation::Decay;
+use crate::law::musculotendon::StepRates;
 use crate::law::params::{AREA_RANGE, L0_RANGE, TENDON_PARAMETERS};
 use crate::law::{Params, PARAMETERS};
 use crate::scene::Scene;
@@ -82,12 +83,12 @@ pub(super) fn encode<S: Scene>(m: &MusculotendonFEModel<S>, out: &mut Vec<u8>) {
         path: u.path,
         guess: [
             u.guess.slope,
-            u.guess.fibre_rate,
-            u.guess.path_rate,
+            u.guess.rates.fibre_rate,
+            u.guess.rates.path_rate,
             u.guess.stiffness,
-            u.guess.fibre_accel,
-            u.guess.path_accel,
-            u.guess.span,
+            u.guess.rates.fibre_accel,
+            u.guess.rates.path_accel,
+            u.guess.rates.span,
         ],
         outputs: u.outputs,
         iterations: u.iterations as u64,
@@ -199,12 +200,14 @@ fn restore_unit(u: UnitState, p: &Params) -> Result<MusculotendonFE, String> {
         path: u.path,
         guess: Guess {
             slope: u.guess[0],
-            fibre_rate: u.guess[1],
-            path_rate: u.guess[2],
             stiffness: u.guess[3],
-            fibre_accel: u.guess[4],
-            path_accel: u.guess[5],
-            span: u.guess[6],
+            rates: StepRates {
+                fibre_rate: u.guess[1],
+                path_rate: u.guess[2],
+                fibre_accel: u.guess[4],
+                path_accel: u.guess[5],
+                span: u.guess[6],
+            },
         },
         outputs: u.outputs,
         iterations: usize::try_from(u.iterations).map_err(|e| e.to_string())?,

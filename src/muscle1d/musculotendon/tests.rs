@@ -433,11 +433,11 @@ fn a_tiny_step_commits_a_finite_guess() {
             let g = mt.guess;
             for x in [
                 g.slope,
-                g.fibre_rate,
-                g.path_rate,
-                g.fibre_accel,
-                g.path_accel,
-                g.span,
+                g.rates.fibre_rate,
+                g.rates.path_rate,
+                g.rates.fibre_accel,
+                g.rates.path_accel,
+                g.rates.span,
             ] {
                 assert!(x.is_finite(), "{u} {factor}: {g:?}");
             }
