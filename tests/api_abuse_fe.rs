@@ -143,15 +143,11 @@ use hill_muscle::fmi2::types::*;
 use hill_muscle::fmus::hillfe::HillFE;
 use testkit::api_abuse::{
     fix_checksum, install, round_trip_status, split_state, vr_named, Fmu, Integers, Subject,
+    MESH_1X1, MESH_2X1,
 };
 
 /// `HillMuscleFE` as the harness's subject.
 pub struct Fe;
-
-/// The smallest mesh: no free node.
-const MESH_1X1: Integers = &[("n_axial", 1), ("n_radial", 1)];
-/// The smallest mesh with free nodes (one interior slice).
-const MESH_2X1: Integers = &[("n_axial", 2), ("n_radial", 1)];
 
 impl Subject for Fe {
     type M = HillFE;

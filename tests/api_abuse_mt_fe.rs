@@ -35,15 +35,10 @@
 #![cfg(feature = "fe")]
 
 use hill_muscle::fmus::musculotendonfe::MusculotendonFe;
-use testkit::api_abuse::{Integers, Subject};
+use testkit::api_abuse::{Integers, Subject, MESH_1X1, MESH_2X1, UNIT_DERIVATIVE_OUTPUTS};
 
 /// `HillMusculotendonFE` as the harness's subject.
 pub struct FeUnit;
-
-/// The smallest mesh: no free node.
-const MESH_1X1: Integers = &[("n_axial", 1), ("n_radial", 1)];
-/// The smallest mesh with free nodes (one interior slice).
-const MESH_2X1: Integers = &[("n_axial", 2), ("n_radial", 1)];
 
 impl Subject for FeUnit {
     type M = MusculotendonFe;
@@ -64,14 +59,7 @@ impl Subject for FeUnit {
     const FUNCTIONS_PER_SEQUENCE: usize = usize::MAX;
     const LARGEST_INTEGER_TRIED: i32 = 2;
     const INIT_MAY_FAIL: bool = false;
-    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = Some(&[
-        "force",
-        "stress",
-        "fibre_length",
-        "tendon_strain",
-        "pennation",
-        "activation_level",
-    ]);
+    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = Some(UNIT_DERIVATIVE_OUTPUTS);
 }
 
 testkit::harness_tests!(FeUnit, release_only);

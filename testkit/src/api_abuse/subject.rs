@@ -10,6 +10,23 @@ use super::*;
 /// Integer parameters by name, with their values.
 pub type Integers = &'static [(&'static str, i32)];
 
+/// An FE subject's smallest mesh: no free node (every node on a clamped
+/// end face), so a step is one evaluation.
+pub const MESH_1X1: Integers = &[("n_axial", 1), ("n_radial", 1)];
+/// An FE subject's smallest mesh with free nodes (one interior slice):
+/// Newton, line search and substeps.
+pub const MESH_2X1: Integers = &[("n_axial", 2), ("n_radial", 1)];
+/// The Real outputs of a musculotendon unit whose derivatives are asked:
+/// all but `stiffness`, itself d force / d length.
+pub const UNIT_DERIVATIVE_OUTPUTS: &[&str] = &[
+    "force",
+    "stress",
+    "fibre_length",
+    "tendon_strain",
+    "pennation",
+    "activation_level",
+];
+
 /// What the harness needs to know about the FMU it drives beyond its
 /// variable table (value references, types, causalities, start values and
 /// parameter ranges all come from `Model::variables()`). Everything here is
