@@ -87,6 +87,19 @@
 //! equilibrium a step converges to is the same to the tolerance; only the
 //! path to it changes, and only on steps that stall.
 //!
+//! # Natural test failing
+//!
+//! Where the tangent is far from the Jacobian along the correction (an
+//! indefinite tangent of a slack, shortening muscle; the mixed iteration's
+//! pressures far from U_J'(J)), no α of a fresh tangent's line search may
+//! pass the natural test while the residual does decrease. The attempt then
+//! continues as damped Newton (the residual merit) from its iterate with
+//! the first trial of that search the residual merit accepts — what the
+//! damped-Newton fallback would do with the same tangent — instead of
+//! ending and leaving the fallbacks to form their tangents again from the
+//! linearised start. Only when no trial decreases the residual either does
+//! the attempt fail. The equilibrium is the same to the tolerance.
+//!
 //! [`CONTRACTION_STEPS`]: crate::fe::tangent::CONTRACTION_STEPS
 
 use std::sync::Arc;
@@ -424,7 +437,9 @@ impl Discretization {
     ///   correction, as K̃ carries the same 2/D;
     /// - ([`Merit::Residual`]) the residual's norm decreases,
     ///   ‖R(x + αΔx)‖ ≤ (1 − 10⁻⁴ α) ‖R(x)‖ — the classic damped Newton, which
-    ///   finds its way from starts the natural test rejects.
+    ///   finds its way from starts the natural test rejects. A natural
+    ///   search with a fresh tangent that no α passes continues with this
+    ///   merit (module docs, "Natural test failing").
     ///
     /// With [`Mode::Reuse`] the tangent is formed afresh at the current
     /// iterate when θ exceeds [`REFRESH_CONTRACTION`], after
@@ -446,7 +461,7 @@ impl Discretization {
         mut x: Vec<f64>,
         mut cache: Arc<TangentCache>,
         mode: Mode,
-        merit: Merit,
+        mut merit: Merit,
         pressures: Pressures,
         known: Option<Contraction>,
         history: Option<(&Trend, &[f64])>,
@@ -570,6 +585,10 @@ impl Discretization {
                 None
             };
             let mut alpha = 1.0;
+            // With the natural test and a fresh tangent: the first trial of
+            // this search that decreases the residual (the residual merit's
+            // choice), should no trial pass the natural test.
+            let mut descent = None;
             let accepted = loop {
                 let trial: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
                 let evaluated = self.evaluate(p, &trial, activation, &warm, rate, false);
@@ -585,19 +604,17 @@ impl Discretization {
                             return Ok(spent.solved(trial, e, cache, aged));
                         }
                     }
-                    let decreased = match merit {
-                        Merit::Residual => {
-                            self.residual_norm2(&e.forces) <= (1.0 - 1e-4 * alpha) * r2
-                        }
-                        Merit::Natural => true,
-                    };
-                    if decreased {
+                    let armijo = self.residual_norm2(&e.forces) <= (1.0 - 1e-4 * alpha) * r2;
+                    if merit == Merit::Natural || armijo {
                         let mut next = self.free_negated(&e.forces);
                         t.factor.solve_in_place(&mut next);
                         spent.solve(input.budget)?;
                         let th = norm2(&next) / norm;
                         if merit == Merit::Residual || th <= 1.0 - 0.25 * alpha {
                             break Some((trial, e, next, th));
+                        }
+                        if fresh && armijo && descent.is_none() {
+                            descent = Some((alpha, trial, e, next, th));
                         }
                     }
                 }
@@ -606,6 +623,14 @@ impl Discretization {
                 }
                 alpha *= 0.5;
                 if alpha < MIN_LINE_SEARCH {
+                    // The natural test fails along the whole search: damped
+                    // Newton from here, its trial already evaluated (module
+                    // docs, "Natural test failing").
+                    if let Some((a, trial, e, next, th)) = descent.take() {
+                        merit = Merit::Residual;
+                        alpha = a;
+                        break Some((trial, e, next, th));
+                    }
                     return Err(format!(
                         "Newton: no decrease along the Newton direction (correction {norm:e} m, residual {r2:e} N)"
                     ));
