@@ -593,6 +593,32 @@ impl Discretization {
         factor: &Factor,
         cap: usize,
     ) -> Result<Option<IterativeDerivatives>, String> {
+        self.preconditioned_derivatives(ev, factor, cap, true)
+    }
+
+    /// [`Self::force_derivatives_preconditioned`]'s dF/dL alone: its first
+    /// solve only (the same iteration, so the same dF/dL whenever both
+    /// solves converge); `None` when it gives up.
+    pub fn length_derivative_preconditioned(
+        &self,
+        ev: &Evaluation,
+        factor: &Factor,
+        cap: usize,
+    ) -> Result<Option<f64>, String> {
+        Ok(self
+            .preconditioned_derivatives(ev, factor, cap, false)?
+            .map(|d| d.length))
+    }
+
+    /// [`Self::force_derivatives_preconditioned`], the activation's solve
+    /// only when `activation` (else dF/da is NaN and its iterations 0).
+    fn preconditioned_derivatives(
+        &self,
+        ev: &Evaluation,
+        factor: &Factor,
+        cap: usize,
+        activation: bool,
+    ) -> Result<Option<IterativeDerivatives>, String> {
         let values = ev.tangent.as_ref().ok_or("no tangent")?;
         let mut delta = try_filled(3 * self.n_nodes(), 0.0, "the derivatives' vectors")?;
         for &d in &self.moved_axial {
@@ -617,6 +643,13 @@ impl Discretization {
         else {
             return Ok(None);
         };
+        if !activation {
+            return Ok(Some(IterativeDerivatives {
+                length: length(&l.y, &l.residual),
+                activation: f64::NAN,
+                iterations: [l.iterations, 0],
+            }));
+        }
         let activation = |y: &[f64], r: &[f64]| direct_a - (dot(&b_l, y) + dot(&l.y, r));
         let Some(a) =
             pattern.conjugate_gradients(values, factor, &ev.d_activation, cap, |y, r, rz| {

@@ -7,7 +7,7 @@
 //! Entry points: [`discretization`] (the fusiform specimen, reused when
 //! unchanged), [`Committed::initialize`], [`Committed::step`],
 //! [`Committed::partial`] (from [`Committed::force_derivatives`],
-//! [`Committed::output_jacobian`]), [`check_stretch`], [`end_length`].
+//! [`Committed::length_derivative`], [`Committed::output_jacobian`]), [`check_stretch`], [`end_length`].
 //!
 //! Invariants: a step that fails returns [`StepFailure`] and changes
 //! nothing. The derivatives are those of the map that produced the
@@ -305,6 +305,9 @@ pub struct Committed {
     pub substepped: Option<Substepped>,
     /// (dF/dL, dF/du) at the committed state (u the activation command).
     derivatives: OnceLock<Result<(f64, f64), String>>,
+    /// dF/dL alone, when it was asked before dF/du
+    /// ([`Self::length_derivative`]).
+    length_derivative: OnceLock<Result<f64, String>>,
     /// [`Self::output_jacobian`].
     output_derivatives: OnceLock<Result<OutputJacobian, String>>,
 }
@@ -326,6 +329,7 @@ impl Committed {
             last,
             substepped,
             derivatives: OnceLock::new(),
+            length_derivative: OnceLock::new(),
             output_derivatives: OnceLock::new(),
         }
     }
@@ -411,7 +415,8 @@ impl Committed {
     /// ∂`out`/∂(input) of the last step's map, the input the length when
     /// `by_length`, else the activation command: `ActivationLevel`'s
     /// exactly (∂a/∂u; 0 by the length), `Force` and `Stress` from
-    /// [`Self::force_derivatives`], the others from
+    /// [`Self::length_derivative`] by the length and
+    /// [`Self::force_derivatives`] by the command, the others from
     /// [`Self::output_jacobian`]. `l0` scales the length differences,
     /// `area` the stresses.
     pub fn partial(
@@ -425,8 +430,11 @@ impl Committed {
         match out {
             Quantity::ActivationLevel => Ok(if by_length { 0.0 } else { self.last.da_du }),
             Quantity::Force | Quantity::Stress => {
-                let (dl, du) = self.force_derivatives(p, l0, area)?;
-                let d = if by_length { dl } else { du };
+                let d = if by_length {
+                    self.length_derivative(p, l0, area)?
+                } else {
+                    self.force_derivatives(p, l0, area)?.1
+                };
                 Ok(if out == Quantity::Force { d } else { d / area })
             }
             _ => Ok(self.output_jacobian(p, l0, area)?[out as usize][usize::from(!by_length)]),
@@ -451,6 +459,40 @@ impl Committed {
                 }
                 let ((dl, da), _) = self.tangent_derivatives(p, DERIVATIVE_ITERATIONS)?;
                 Ok((dl, da * self.last.da_du))
+            })
+            .clone()
+    }
+
+    /// dF/dL of [`Self::force_derivatives`] without dF/du when that has
+    /// not been computed (a coupled master asks for the stiffness alone):
+    /// for a step in one piece after a step, the length's solve of
+    /// [`Self::tangent_derivatives`] only — the same dF/dL whenever its
+    /// activation solve would converge too; else the tangent's
+    /// factorisation, as there; a substepped step's from its step map.
+    pub fn length_derivative(&self, p: &Params, l0: f64, area: f64) -> Result<f64, String> {
+        if let Some(d) = self.derivatives.get() {
+            return d.clone().map(|d| d.0);
+        }
+        self.length_derivative
+            .get_or_init(|| {
+                if self.substepped.is_some() {
+                    return Ok(self.force_derivatives(p, l0, area)?.0);
+                }
+                let (m, last) = (&self.muscle, &self.last);
+                let ev =
+                    m.disc
+                        .evaluate(p, &m.x, last.activation, &last.start, last.rate(), true)?;
+                let factor = match (&m.tangent, last.h) {
+                    (Some(cache), Some(_)) => cache.tangent(&m.disc, p).ok().map(|t| &t.factor),
+                    _ => None,
+                };
+                if let Some(factor) = factor {
+                    let cap = DERIVATIVE_ITERATIONS;
+                    if let Some(d) = m.disc.length_derivative_preconditioned(&ev, factor, cap)? {
+                        return Ok(d);
+                    }
+                }
+                Ok(m.disc.force_derivatives(&ev)?.0)
             })
             .clone()
     }
