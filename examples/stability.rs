@@ -438,8 +438,9 @@ fn report(
          maximum isometric stress, or of the stress where that is larger); for a musculotendon unit x = force \
          (relative to F0 = sigma0·area instead of sigma0) and stress, reported in the columns of stress and \
          active_stress.\n\n\
-         Each cell is bounded in time: {}s for both runs (checked between steps; past it the cell is a \
-         `timeout`), and a watchdog ends the whole run, naming the cell, if one FMI call does not return \
+         Each cell is bounded in time: {}s of CPU time of the thread running it for both runs (checked \
+         between steps; past it the cell is a `timeout`; CPU time, so a cell's outcome does not depend on the \
+         machine's load; the seconds reported are wall time), and a watchdog ends the whole run, naming the cell, if one FMI call does not return \
          within {}s.\n",
         CELL_TIME_LIMIT.as_secs(),
         HANG_LIMIT.as_secs()

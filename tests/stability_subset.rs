@@ -154,7 +154,8 @@ fn ci_subset_meets_the_acceptance_criteria() {
 
 /// Hill1D with a defect in what it reports: after `FROM` steps, `force` is NaN
 /// (`Defect::NaN`) or `active_stress` is 1.5 times the largest the law
-/// allows (`Defect::Bound`).
+/// allows (`Defect::Bound`); or (`SLEEP`) correct but each step sleeps
+/// [`NAP`] first, a thread that waits rather than computes.
 #[derive(Clone, Debug, PartialEq)]
 struct Faulty<const DEFECT: u8> {
     inner: Hill1D,
@@ -163,7 +164,9 @@ struct Faulty<const DEFECT: u8> {
 
 const NAN: u8 = 0;
 const BOUND: u8 = 1;
+const SLEEP: u8 = 2;
 const FROM: u32 = 3;
+const NAP: std::time::Duration = std::time::Duration::from_millis(2);
 
 impl<const DEFECT: u8> Model for Faulty<DEFECT> {
     type Var = Var;
@@ -221,6 +224,9 @@ impl<const DEFECT: u8> Model for Faulty<DEFECT> {
         self.inner.initialize()
     }
     fn do_step(&mut self, t: f64, h: f64) -> Result<(), StepError> {
+        if DEFECT == SLEEP {
+            std::thread::sleep(NAP);
+        }
         self.inner.do_step(t, h)?;
         self.steps += 1;
         Ok(())
@@ -250,8 +256,8 @@ fn faulty_cell() -> Cell {
     }
 }
 
-fn run_faulty<const DEFECT: u8>() -> CellResult {
-    let hooks = Hooks::<Faulty<DEFECT>> {
+fn faulty_hooks<const DEFECT: u8>() -> Hooks<Faulty<DEFECT>> {
+    Hooks {
         stats: None,
         bounds: uniaxial_bounds,
         integers: &[],
@@ -259,8 +265,15 @@ fn run_faulty<const DEFECT: u8>() -> CellResult {
         fine_budget: FINE_BUDGET,
         tendon_slack_length: None,
         compared: MUSCLE_COMPARED,
-    };
-    run_cell(&faulty_cell(), &Watch::new(Slot::new()), &hooks)
+    }
+}
+
+fn run_faulty<const DEFECT: u8>() -> CellResult {
+    run_cell(
+        &faulty_cell(),
+        &Watch::new(Slot::new()),
+        &faulty_hooks::<DEFECT>(),
+    )
 }
 
 #[test]
@@ -373,6 +386,42 @@ fn only_the_run_at_h_fails_a_cell_by_its_time_bound() {
         fails.len() == 1 && fails[0].contains("h: timeout"),
         "{fails:?}"
     );
+}
+
+/// The cell's time bound counts the CPU time of the thread running it, not
+/// wall time: a cell whose thread mostly sleeps (as on a loaded machine,
+/// where it waits for a core) runs past the bound in wall time and still
+/// completes; a thread that computes runs out.
+#[test]
+fn the_time_bound_counts_cpu_time_not_wall_time() {
+    use std::time::{Duration, Instant};
+    let limit = Duration::from_millis(300);
+    // The cell at h = 1e-3 s: over 400 steps of NAP each, no reference run.
+    let cell = Cell {
+        h: 1e-3,
+        ..faulty_cell()
+    };
+    let hooks = Hooks {
+        fine_budget: 0,
+        ..faulty_hooks::<SLEEP>()
+    };
+    let r = run_cell(&cell, &Watch::with_limit(Slot::new(), limit), &hooks);
+    assert_eq!(r.coarse.outcome, Some(Outcome::Completed));
+    assert!(r.coarse.steps >= 400, "{}", r.coarse.steps);
+    // Past the bound in wall time (the seconds reported are wall time).
+    assert!(
+        r.coarse.seconds > 2.0 * limit.as_secs_f64(),
+        "{}",
+        r.coarse.seconds
+    );
+    // A thread that computes runs out within its CPU time.
+    let watch = Watch::with_limit(Slot::new(), Duration::from_millis(50));
+    let started = Instant::now();
+    let mut x = 0u64;
+    while !watch.expired() && started.elapsed() < Duration::from_secs(30) {
+        x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+    }
+    assert!(watch.expired(), "{x}");
 }
 
 // ---------------------------------------------------------------------------
