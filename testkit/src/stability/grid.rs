@@ -15,6 +15,9 @@ pub const S_VALUES: [f64; 4] = [1.0, 50.0, 1e3, 1e5];
 /// Communication step h [s].
 pub const H_VALUES: [f64; 5] = [1e-6, 1e-4, 1e-3, 1e-2, 0.1];
 
+/// The rest length L0 of every model's muscle in the matrix (m).
+pub const L0: f64 = 0.05;
+
 /// The reference run takes steps this many times smaller.
 pub const FINE_FACTOR: usize = 100;
 /// The reference run is made when it takes at most this many steps.

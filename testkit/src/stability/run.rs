@@ -235,37 +235,11 @@ pub(crate) fn execute_inner<M: Model>(
     record: bool,
     run: &mut Run,
 ) -> Result<Outcome, String> {
-    let l0 = 0.05;
-    let mut fmu = Fmu::<M>::new("stability")?;
-    for (name, v) in checker.hooks.integers {
-        fmu.set_integer(name, *v)?;
-    }
-    for (name, v) in checker.hooks.booleans {
-        fmu.set_boolean(name, *v)?;
-    }
-    for (id, v) in cell.settings() {
-        fmu.set_real(Params::info(id).name, v)?;
-    }
-    fmu.set_real("L0", l0)?;
+    let l0 = L0;
+    let mut fmu = cell_fmu::<M>(cell, checker.hooks)?;
     // A unit's length input is its path: the path at each breakpoint of
-    // the program, by the fibres' share (`unit`; the tendon's strain at F0
-    // and the pennation angle at the FMU's start values, which the harness
-    // does not set).
-    let unit_paths = match checker.hooks.tendon_slack_length {
-        Some(lts) => {
-            fmu.set_real("tendon_slack_length", lts)?;
-            let tendon = UnitParams::default();
-            let map = UnitPath::new(
-                &checker.params,
-                l0,
-                lts,
-                tendon.tendon_strain_at_f0,
-                tendon.pennation_angle,
-            );
-            Some(map.breakpoints(prog))
-        }
-        None => None,
-    };
+    // the program, by the fibres' share (`unit`).
+    let unit_paths = unit_breakpoints(cell, checker.hooks, prog)?;
     fmu.set_real("initial_activation", prog.initial_activation)?;
     let length0 = match &unit_paths {
         Some(paths) => paths[0],
@@ -396,6 +370,27 @@ pub(crate) fn execute_inner<M: Model>(
         }
     }
     Ok(Outcome::Completed)
+}
+
+/// An instance of `M` set up for `cell`, before initialization: the
+/// hooks' Integer and Boolean parameters, the cell's law, L0 and, for a
+/// unit, its tendon slack length.
+pub(crate) fn cell_fmu<M: Model>(cell: &Cell, hooks: &Hooks<M>) -> Result<Fmu<M>, String> {
+    let mut fmu = Fmu::<M>::new("stability")?;
+    for (name, v) in hooks.integers {
+        fmu.set_integer(name, *v)?;
+    }
+    for (name, v) in hooks.booleans {
+        fmu.set_boolean(name, *v)?;
+    }
+    for (id, v) in cell.settings() {
+        fmu.set_real(Params::info(id).name, v)?;
+    }
+    fmu.set_real("L0", L0)?;
+    if let Some(lts) = hooks.tendon_slack_length {
+        fmu.set_real("tendon_slack_length", lts)?;
+    }
+    Ok(fmu)
 }
 
 pub(crate) fn check_sample<M: Model>(
