@@ -413,8 +413,11 @@ fn report(
     for sc in Scenario::ALL {
         let _ = writeln!(s, "  - `{}`: {}", sc.name(), sc.describe());
     }
-    if models.iter().any(|m| m.contains("Musculotendon")) {
+    if models.contains(&"HillMusculotendon1D") {
         s.push_str(&unit_programs());
+    }
+    if models.contains(&"HillMusculotendonFE") {
+        s.push_str(&fe_unit_programs(results));
     }
     let _ = writeln!(
         s,
@@ -438,8 +441,9 @@ fn report(
          maximum isometric stress, or of the stress where that is larger); for a musculotendon unit x = force \
          (relative to F0 = sigma0·area instead of sigma0) and stress, reported in the columns of stress and \
          active_stress.\n\n\
-         Each cell is bounded in time: {}s for both runs (checked between steps; past it the cell is a \
-         `timeout`), and a watchdog ends the whole run, naming the cell, if one FMI call does not return \
+         Each cell is bounded in time: {}s of CPU time of the thread running it for both runs (checked \
+         between steps; past it the cell is a `timeout`; CPU time, so a cell's outcome does not depend on the \
+         machine's load; the seconds reported are wall time), and a watchdog ends the whole run, naming the cell, if one FMI call does not return \
          within {}s.\n",
         CELL_TIME_LIMIT.as_secs(),
         HANG_LIMIT.as_secs()
@@ -860,6 +864,54 @@ fn unit_programs() -> String {
          linearly.\n",
         caps.join(", ")
     )
+}
+
+/// The FE unit's programs: the fibres' share and the cap by its own relaxed
+/// equilibrium (`testkit::stability::RelaxedUnit`), the caps of its cells.
+#[cfg(feature = "fe")]
+fn fe_unit_programs(results: &[CellResult]) -> String {
+    let mut caps: BTreeMap<String, (f64, f64)> = BTreeMap::new();
+    for r in results.iter().filter(|r| r.model == "HillMusculotendonFE") {
+        let cap = musculotendon_fe_relaxed(&r.cell).cap();
+        let e = caps
+            .entry(format!("D = {:e}", r.cell.d_comp))
+            .or_insert((f64::INFINITY, 0.0));
+        *e = (e.0.min(cap), e.1.max(cap));
+    }
+    let caps: Vec<String> = caps
+        .iter()
+        .map(|(d, (lo, hi))| {
+            if (hi - lo).abs() < 5e-4 {
+                format!("{lo:.3} with {d}")
+            } else {
+                format!("{lo:.3}–{hi:.3} with {d}")
+            }
+        })
+        .collect();
+    format!(
+        "- for the FE musculotendon unit, whose `length` is its whole path (tendon slack length L_TS = 4 cm, \
+         tendon_strain_at_F0 0.04, no pennation), the stretch is its fibres': the path is the fibres' share, \
+         the path at which the relaxed unit (activation 0, at rest) holds its fibres at the stretch, \
+         L_TS (1 + ε_T(F_p(λ)/F0)) + λ L0, with F_p the FE unit's own relaxed force at fibre stretch λ (its FE \
+         muscle on the matrix's 6 × 1 mesh, clamped at its ends: the unit initialized at activation 0 through \
+         its FMI functions, `RelaxedUnit`; 0 for λ ≤ 1, where the path is L_TS + λ L0 and a slack tendon cannot \
+         push) and ε_T the tendon's strain at that force. Every program is capped at the stretch where these \
+         relaxed fibres carry {RELAXED_FORCE_CAP} F0: here {}. The clamped FE specimen carries more than the 1D \
+         law in uniaxial stress at the same stretch (with D = 1e-4 some 3.6 F0 at 2.0, where the law carries \
+         less than F0), so a cap by the law would take its tendon past its rupture strain \
+         2.5·tendon_strain_at_F0 (3.567 F0), a path the unit refuses (`fmi2Discard`, the instance unchanged; \
+         its own test in `tests/stability_subset.rs`, not a cell of the matrix). A fully active muscle adds at \
+         most f_v,max F0 ≤ 1.82 F0, so every capped program stays short of rupture. A capped program keeps its \
+         timing (a ramp to 2.0 ramps at the same rate to the cap and holds there until the muscle's program \
+         turns); `act-jumps@2` runs at the cap. Between the program's breakpoints the path is interpolated \
+         linearly.\n",
+        caps.join(", ")
+    )
+}
+
+#[cfg(not(feature = "fe"))]
+fn fe_unit_programs(_: &[CellResult]) -> String {
+    String::new()
 }
 
 fn fe_time_control(results: &[CellResult]) -> String {

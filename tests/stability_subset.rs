@@ -154,7 +154,8 @@ fn ci_subset_meets_the_acceptance_criteria() {
 
 /// Hill1D with a defect in what it reports: after `FROM` steps, `force` is NaN
 /// (`Defect::NaN`) or `active_stress` is 1.5 times the largest the law
-/// allows (`Defect::Bound`).
+/// allows (`Defect::Bound`); or (`SLEEP`) correct but each step sleeps
+/// [`NAP`] first, a thread that waits rather than computes.
 #[derive(Clone, Debug, PartialEq)]
 struct Faulty<const DEFECT: u8> {
     inner: Hill1D,
@@ -163,7 +164,9 @@ struct Faulty<const DEFECT: u8> {
 
 const NAN: u8 = 0;
 const BOUND: u8 = 1;
+const SLEEP: u8 = 2;
 const FROM: u32 = 3;
+const NAP: std::time::Duration = std::time::Duration::from_millis(2);
 
 impl<const DEFECT: u8> Model for Faulty<DEFECT> {
     type Var = Var;
@@ -221,6 +224,9 @@ impl<const DEFECT: u8> Model for Faulty<DEFECT> {
         self.inner.initialize()
     }
     fn do_step(&mut self, t: f64, h: f64) -> Result<(), StepError> {
+        if DEFECT == SLEEP {
+            std::thread::sleep(NAP);
+        }
         self.inner.do_step(t, h)?;
         self.steps += 1;
         Ok(())
@@ -250,17 +256,25 @@ fn faulty_cell() -> Cell {
     }
 }
 
-fn run_faulty<const DEFECT: u8>() -> CellResult {
-    let hooks = Hooks::<Faulty<DEFECT>> {
+fn faulty_hooks<const DEFECT: u8>() -> Hooks<Faulty<DEFECT>> {
+    Hooks {
         stats: None,
         bounds: uniaxial_bounds,
         integers: &[],
         booleans: &[],
         fine_budget: FINE_BUDGET,
         tendon_slack_length: None,
+        relaxed_fibres: RelaxedFibres::Law,
         compared: MUSCLE_COMPARED,
-    };
-    run_cell(&faulty_cell(), &Watch::new(Slot::new()), &hooks)
+    }
+}
+
+fn run_faulty<const DEFECT: u8>() -> CellResult {
+    run_cell(
+        &faulty_cell(),
+        &Watch::new(Slot::new()),
+        &faulty_hooks::<DEFECT>(),
+    )
 }
 
 #[test]
@@ -284,6 +298,7 @@ fn a_nan_output_fails_the_cell() {
             booleans: &[],
             fine_budget: FINE_BUDGET,
             tendon_slack_length: None,
+            relaxed_fibres: RelaxedFibres::Law,
             compared: MUSCLE_COMPARED,
         },
     );
@@ -373,6 +388,42 @@ fn only_the_run_at_h_fails_a_cell_by_its_time_bound() {
         fails.len() == 1 && fails[0].contains("h: timeout"),
         "{fails:?}"
     );
+}
+
+/// The cell's time bound counts the CPU time of the thread running it, not
+/// wall time: a cell whose thread mostly sleeps (as on a loaded machine,
+/// where it waits for a core) runs past the bound in wall time and still
+/// completes; a thread that computes runs out.
+#[test]
+fn the_time_bound_counts_cpu_time_not_wall_time() {
+    use std::time::{Duration, Instant};
+    let limit = Duration::from_millis(300);
+    // The cell at h = 1e-3 s: over 400 steps of NAP each, no reference run.
+    let cell = Cell {
+        h: 1e-3,
+        ..faulty_cell()
+    };
+    let hooks = Hooks {
+        fine_budget: 0,
+        ..faulty_hooks::<SLEEP>()
+    };
+    let r = run_cell(&cell, &Watch::with_limit(Slot::new(), limit), &hooks);
+    assert_eq!(r.coarse.outcome, Some(Outcome::Completed));
+    assert!(r.coarse.steps >= 400, "{}", r.coarse.steps);
+    // Past the bound in wall time (the seconds reported are wall time).
+    assert!(
+        r.coarse.seconds > 2.0 * limit.as_secs_f64(),
+        "{}",
+        r.coarse.seconds
+    );
+    // A thread that computes runs out within its CPU time.
+    let watch = Watch::with_limit(Slot::new(), Duration::from_millis(50));
+    let started = Instant::now();
+    let mut x = 0u64;
+    while !watch.expired() && started.elapsed() < Duration::from_secs(30) {
+        x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+    }
+    assert!(watch.expired(), "{x}");
 }
 
 // ---------------------------------------------------------------------------
@@ -521,4 +572,83 @@ fn the_units_capped_programs_stay_short_of_rupture() {
             assert!(paths.windows(2).all(|w| w[1] > w[0]));
         }
     }
+}
+
+/// The FE unit's capped programs stay short of rupture, by its own relaxed
+/// equilibrium (`RelaxedUnit`: the FE specimen at the matrix's 6 × 1 mesh,
+/// which carries more than the 1D law at the same stretch, 3.6 F0 at
+/// stretch 2.0 with D = 1e-4): at every parameter set and D of the grid,
+/// at the cap the relaxed unit holds its fibres at the cap, they carry at
+/// most F0 (F0 within 1e-6, or less at 2.0), its tendon's strain is at most
+/// the tendon's strain at F0, and F0 plus the largest active force stays below the
+/// tendon's force at rupture; the path rises with the stretch and holds
+/// the fibres at each stretch asked for.
+#[cfg(feature = "fe")]
+#[test]
+fn the_fe_units_capped_programs_stay_short_of_rupture() {
+    use hill_muscle::law::musculotendon::UnitParams;
+    use hill_muscle::law::tendon::{tendon_curve, Tendon, RUPTURE_STRAIN_RATIO};
+    let rupture = tendon_curve(RUPTURE_STRAIN_RATIO, 1.0).0;
+    let eps0 = UnitParams::default().tendon_strain_at_f0;
+    let strain_at_cap = Tendon {
+        slack_length: 0.04,
+        strain_at_f0: eps0,
+        f0: 1.0,
+    }
+    .strain_at(RELAXED_FORCE_CAP);
+    // One thread per parameter set: each case costs some 40 FE
+    // initializations.
+    std::thread::scope(|scope| {
+        for params in ParamSet::ALL {
+            scope.spawn(move || {
+        for d_comp in D_VALUES.into_iter().filter(|d| *d >= 1e-9) {
+            let cell = Cell {
+                d_comp,
+                alpha: 10.0,
+                s: 50.0,
+                h: 0.1,
+                params,
+                scenario: Scenario::ActivationJumps { stretch: 2.0 },
+            };
+            let started = std::time::Instant::now();
+            let unit = musculotendon_fe_relaxed(&cell);
+            let cap = unit.cap();
+            let at_cap = unit.at(unit.path(cap).unwrap()).unwrap();
+            eprintln!(
+                "{} D={d_comp:e}: FE unit cap {cap:.4} (the law's {:.4}), there {at_cap:?} ({:.1} s)",
+                params.name(),
+                unit_cap(&cell.law()),
+                started.elapsed().as_secs_f64()
+            );
+            assert!(cap > 1.0 && cap <= 2.0, "{cap}");
+            assert!((at_cap.stretch - cap).abs() < 1e-6, "{at_cap:?}");
+            assert!(
+                (at_cap.force - RELAXED_FORCE_CAP).abs() < 1e-6
+                    || (cap == 2.0 && at_cap.force < RELAXED_FORCE_CAP),
+                "{at_cap:?}"
+            );
+            assert!(
+                at_cap.tendon_strain <= strain_at_cap * (1.0 + 1e-6),
+                "{at_cap:?}, {strain_at_cap}"
+            );
+            assert!(at_cap.tendon_strain < RUPTURE_STRAIN_RATIO * eps0);
+            assert!(
+                at_cap.force.max(RELAXED_FORCE_CAP) + cell.law().fv_max() < rupture,
+                "{at_cap:?}"
+            );
+            // The program of the cell runs at the cap.
+            let prog = capped(&program(cell.scenario, cell.h), cap);
+            assert!(prog.steps.iter().all(|s| s.stretch == cap));
+            // The path rises with the stretch and holds the fibres there.
+            let stretches = [0.3, 1.0, 1.0 + 0.5 * (cap - 1.0), cap];
+            let paths: Vec<f64> = stretches.iter().map(|&s| unit.path(s).unwrap()).collect();
+            assert!(paths.windows(2).all(|w| w[1] > w[0]), "{paths:?}");
+            for (&s, &p) in stretches.iter().zip(&paths).skip(2) {
+                let r = unit.at(p).unwrap();
+                assert!((r.stretch - s).abs() < 1e-6, "{s}: {r:?}");
+            }
+        }
+        });
+        }
+    });
 }

@@ -15,6 +15,9 @@ pub const S_VALUES: [f64; 4] = [1.0, 50.0, 1e3, 1e5];
 /// Communication step h [s].
 pub const H_VALUES: [f64; 5] = [1e-6, 1e-4, 1e-3, 1e-2, 0.1];
 
+/// The rest length L0 of every model's muscle in the matrix (m).
+pub const L0: f64 = 0.05;
+
 /// The reference run takes steps this many times smaller.
 pub const FINE_FACTOR: usize = 100;
 /// The reference run is made when it takes at most this many steps.
@@ -23,8 +26,10 @@ pub const FINE_BUDGET: usize = 1_000_000;
 /// communication point |x − x_ref| ≤ AGREEMENT_TOL · max(sigma0, |x_ref|) for
 /// x = stress and x = active_stress (see [`Agreement`]).
 pub const AGREEMENT_TOL: f64 = 0.02;
-/// Wall-clock bound of one cell (coarse and reference run together),
-/// checked between steps. A cell past it is recorded as `timeout`.
+/// Bound of one cell (coarse and reference run together) in CPU time of
+/// the thread running it ([`Watch`]), checked between steps: a cell's
+/// outcome does not depend on the machine's load. A cell past it is
+/// recorded as `timeout`. The reported `seconds` are wall time.
 pub const CELL_TIME_LIMIT: Duration = Duration::from_secs(120);
 /// A single FMI call that has not returned after this long is a hang: the
 /// watchdog names the cell and ends the process.

@@ -50,6 +50,13 @@
 //! finite, and the model's physical bounds ([`Hooks::bounds`]). The outputs
 //! at the communication points are compared with the run at h/100 where that
 //! costs at most [`FINE_BUDGET`] steps.
+//!
+//! Each cell is bounded by [`CELL_TIME_LIMIT`] of **CPU time of the thread
+//! running it** (coarse and reference run together, checked between steps,
+//! [`Watch`]), not wall time: a cell's outcome does not depend on what else
+//! the machine runs. The `seconds` a run reports are its wall time. A
+//! watchdog ends the process if one FMI call shows no sign of life for
+//! [`HANG_LIMIT`] of wall time.
 
 use std::ffi::CString;
 use std::marker::PhantomData;

@@ -58,6 +58,9 @@ pub struct Hooks<M> {
     /// stretch, the path its fibres' share (`unit`: [`program_of`],
     /// [`UnitPath`]).
     pub tendon_slack_length: Option<f64>,
+    /// A unit's relaxed fibres, which state its program: the 1D law's or
+    /// the unit's own (`unit`; ignored for a muscle).
+    pub relaxed_fibres: RelaxedFibres,
     /// The two outputs recorded and compared with the run at h / [`FINE_FACTOR`].
     pub compared: [&'static str; 2],
 }
@@ -188,6 +191,7 @@ pub(crate) const HILLFE_HOOKS: Hooks<HillFE> = Hooks {
     booleans: &[],
     fine_budget: 20_000,
     tendon_slack_length: None,
+    relaxed_fibres: RelaxedFibres::Law,
     compared: MUSCLE_COMPARED,
 };
 
@@ -218,8 +222,16 @@ pub(crate) const MUSCULOTENDONFE_HOOKS: Hooks<MusculotendonFe> = Hooks {
     booleans: &[],
     fine_budget: HILLFE_HOOKS.fine_budget,
     tendon_slack_length: MUSCULOTENDON1D_HOOKS.tendon_slack_length,
+    relaxed_fibres: RelaxedFibres::Own,
     compared: MUSCULOTENDON1D_HOOKS.compared,
 };
+
+/// The FE unit's relaxed equilibrium in `cell` as the matrix sets the unit
+/// up: its programs' cap and fibres' share.
+#[cfg(feature = "fe")]
+pub fn musculotendon_fe_relaxed(cell: &Cell) -> RelaxedUnit<'_, MusculotendonFe> {
+    RelaxedUnit::new(cell, &MUSCULOTENDONFE_HOOKS)
+}
 
 pub(crate) const HILL1D_HOOKS: Hooks<Hill1D> = Hooks {
     stats: Some(|m: &Hill1D| {
@@ -235,6 +247,7 @@ pub(crate) const HILL1D_HOOKS: Hooks<Hill1D> = Hooks {
     booleans: &[],
     fine_budget: FINE_BUDGET,
     tendon_slack_length: None,
+    relaxed_fibres: RelaxedFibres::Law,
     compared: MUSCLE_COMPARED,
 };
 
@@ -252,6 +265,7 @@ pub(crate) const MUSCULOTENDON1D_HOOKS: Hooks<Musculotendon> = Hooks {
     booleans: &[],
     fine_budget: FINE_BUDGET,
     tendon_slack_length: Some(0.04),
+    relaxed_fibres: RelaxedFibres::Law,
     compared: ["force", "stress"],
 };
 

@@ -39,24 +39,51 @@ impl Slot {
     }
 }
 
-/// The time bound of one cell.
+/// The time bound of one cell: [`CELL_TIME_LIMIT`] of CPU time of the
+/// thread that creates the watch and runs the cell (so a cell's outcome does
+/// not depend on what else the machine runs).
 pub struct Watch {
-    pub deadline: Instant,
+    /// The thread's CPU time at which the cell runs out.
+    deadline: Duration,
     slot: Arc<Slot>,
 }
 
 impl Watch {
+    /// The bound [`CELL_TIME_LIMIT`] from now, on the calling thread.
     pub fn new(slot: Arc<Slot>) -> Watch {
+        Watch::with_limit(slot, CELL_TIME_LIMIT)
+    }
+
+    /// A bound of `limit` of the calling thread's CPU time from now.
+    pub fn with_limit(slot: Arc<Slot>, limit: Duration) -> Watch {
         slot.beat();
         Watch {
-            deadline: Instant::now() + CELL_TIME_LIMIT,
+            deadline: thread_cpu_time() + limit,
             slot,
         }
+    }
+
+    /// Whether the calling thread has used up the cell's CPU time.
+    pub fn expired(&self) -> bool {
+        thread_cpu_time() > self.deadline
     }
 
     fn beat(&self) {
         self.slot.beat();
     }
+}
+
+/// The CPU time the calling thread has used (CLOCK_THREAD_CPUTIME_ID).
+pub fn thread_cpu_time() -> Duration {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; the clock id is a
+    // constant every supported (POSIX) target provides.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
 }
 
 /// How a run ended.
@@ -69,7 +96,7 @@ pub enum Outcome {
     Discarded { t: f64, message: String },
     /// A call returned fmi2Error or fmi2Fatal (or the setup failed).
     Error { message: String },
-    /// The cell's time bound passed.
+    /// The cell's time bound (CPU time, [`Watch`]) passed.
     Timeout { t: f64 },
 }
 
@@ -108,6 +135,7 @@ pub struct Run {
     pub substeps: Counts,
     /// Largest active_stress / (fv_max sigma0 activation_level) met.
     pub max_active_ratio: f64,
+    /// The run's wall time (its time bound counts CPU time, [`Watch`]).
     pub seconds: f64,
 }
 
@@ -207,37 +235,11 @@ pub(crate) fn execute_inner<M: Model>(
     record: bool,
     run: &mut Run,
 ) -> Result<Outcome, String> {
-    let l0 = 0.05;
-    let mut fmu = Fmu::<M>::new("stability")?;
-    for (name, v) in checker.hooks.integers {
-        fmu.set_integer(name, *v)?;
-    }
-    for (name, v) in checker.hooks.booleans {
-        fmu.set_boolean(name, *v)?;
-    }
-    for (id, v) in cell.settings() {
-        fmu.set_real(Params::info(id).name, v)?;
-    }
-    fmu.set_real("L0", l0)?;
+    let l0 = L0;
+    let mut fmu = cell_fmu::<M>(cell, checker.hooks)?;
     // A unit's length input is its path: the path at each breakpoint of
-    // the program, by the fibres' share (`unit`; the tendon's strain at F0
-    // and the pennation angle at the FMU's start values, which the harness
-    // does not set).
-    let unit_paths = match checker.hooks.tendon_slack_length {
-        Some(lts) => {
-            fmu.set_real("tendon_slack_length", lts)?;
-            let tendon = UnitParams::default();
-            let map = UnitPath::new(
-                &checker.params,
-                l0,
-                lts,
-                tendon.tendon_strain_at_f0,
-                tendon.pennation_angle,
-            );
-            Some(map.breakpoints(prog))
-        }
-        None => None,
-    };
+    // the program, by the fibres' share (`unit`).
+    let unit_paths = unit_breakpoints(cell, checker.hooks, prog)?;
     fmu.set_real("initial_activation", prog.initial_activation)?;
     let length0 = match &unit_paths {
         Some(paths) => paths[0],
@@ -296,7 +298,7 @@ pub(crate) fn execute_inner<M: Model>(
     };
     for i in 0..n_total {
         watch.beat();
-        if i % 256 == 0 && Instant::now() > watch.deadline {
+        if i % 256 == 0 && watch.expired() {
             return Ok(Outcome::Timeout { t: i as f64 * h });
         }
         let t = i as f64 * h;
@@ -322,7 +324,7 @@ pub(crate) fn execute_inner<M: Model>(
                         // Every FMI call is a sign of life, and the cell's
                         // time bound holds inside a retry too.
                         watch.beat();
-                        if Instant::now() > watch.deadline {
+                        if watch.expired() {
                             return Ok(Outcome::Timeout { t });
                         }
                         let (u, _, length) = signal(i, (k + 1) as f64 / pieces as f64);
@@ -368,6 +370,27 @@ pub(crate) fn execute_inner<M: Model>(
         }
     }
     Ok(Outcome::Completed)
+}
+
+/// An instance of `M` set up for `cell`, before initialization: the
+/// hooks' Integer and Boolean parameters, the cell's law, L0 and, for a
+/// unit, its tendon slack length.
+pub(crate) fn cell_fmu<M: Model>(cell: &Cell, hooks: &Hooks<M>) -> Result<Fmu<M>, String> {
+    let mut fmu = Fmu::<M>::new("stability")?;
+    for (name, v) in hooks.integers {
+        fmu.set_integer(name, *v)?;
+    }
+    for (name, v) in hooks.booleans {
+        fmu.set_boolean(name, *v)?;
+    }
+    for (id, v) in cell.settings() {
+        fmu.set_real(Params::info(id).name, v)?;
+    }
+    fmu.set_real("L0", L0)?;
+    if let Some(lts) = hooks.tendon_slack_length {
+        fmu.set_real("tendon_slack_length", lts)?;
+    }
+    Ok(fmu)
 }
 
 pub(crate) fn check_sample<M: Model>(
