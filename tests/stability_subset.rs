@@ -652,3 +652,27 @@ fn the_fe_units_capped_programs_stay_short_of_rupture() {
         }
     });
 }
+
+/// The FE unit's stiffness after a substepped step whose step map does not
+/// converge on one side of its central difference (joint jumps, the stiff
+/// SEE, D = 1e-6, run at 1 ms: the step after the jump from (1.3, 1) to
+/// (0.8, 0)): a one-sided difference, never NaN. The cell is the reference
+/// run of the FE unit page's joint-jumps cell at h = 0.1 s.
+#[cfg(feature = "fe")]
+#[test]
+fn the_fe_units_stiffness_is_finite_where_a_difference_side_fails() {
+    let cell = Cell {
+        d_comp: 1e-6,
+        alpha: 1000.0,
+        s: 1e5,
+        h: 1e-3,
+        params: ParamSet::Table2,
+        scenario: Scenario::JointJumps,
+    };
+    let entry = models()
+        .into_iter()
+        .find(|m| m.name == "HillMusculotendonFE")
+        .expect("the FE unit is in the matrix");
+    let r = (entry.run)(&cell, &Watch::new(Slot::new()));
+    assert_eq!(acceptance(&r), Vec::<String>::new());
+}

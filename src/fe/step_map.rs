@@ -548,10 +548,21 @@ impl Committed {
         area: f64,
     ) -> Result<OutputJacobian, String> {
         self.output_derivatives
-            .get_or_init(|| {
-                if let Some(step) = &self.substepped {
-                    return step_map_jacobian(step, p, l0, area);
+            .get_or_init(|| match &self.substepped {
+                Some(step) => {
+                    step_map_jacobian(step, p, l0, area, || self.piece_jacobian(p, l0, area))
                 }
+                None => self.piece_jacobian(p, l0, area),
+            })
+            .clone()
+    }
+
+    /// The one-piece part of [`Self::output_jacobian`]: the outputs along
+    /// the equilibrium's sensitivities from the converged tangent, the
+    /// last (sub)step's start history held fixed.
+    fn piece_jacobian(&self, p: &Params, l0: f64, area: f64) -> Result<OutputJacobian, String> {
+        {
+            {
                 let (m, last) = (&self.muscle, &self.last);
                 let a = last.activation;
                 let ev = m
@@ -581,8 +592,8 @@ impl Committed {
                     (&more, &less, up + down),
                     last.da_du,
                 ))
-            })
-            .clone()
+            }
+        }
     }
 }
 
@@ -615,14 +626,43 @@ pub fn end_length(length: f64, rate: f64, h: f64, p: &Params, l0: f64) -> Result
     Ok(end)
 }
 
+/// One input's column of [`step_map_jacobian`], the outputs at input
+/// x₊ = `xs.0` and x₋ = `xs.1` about x = `xs.2`: (y₊ − y₋)/(x₊ − x₋), or
+/// one-sided against the outputs at x (`centre`) where one side failed,
+/// `None` where both did.
+fn difference_column(
+    plus: Result<Outputs, String>,
+    minus: Result<Outputs, String>,
+    xs: (f64, f64, f64),
+    centre: impl Fn() -> Result<Outputs, String>,
+) -> Result<Option<Outputs>, String> {
+    let (x_plus, x_minus, x) = xs;
+    let d = |a: &Outputs, b: &Outputs, h: f64| -> Outputs {
+        std::array::from_fn(|o| (a[o] - b[o]) / h)
+    };
+    Ok(match (plus, minus) {
+        (Ok(a), Ok(b)) => Some(d(&a, &b, x_plus - x_minus)),
+        (Ok(a), Err(_)) => Some(d(&a, &centre()?, x_plus - x)),
+        (Err(_), Ok(b)) => Some(d(&centre()?, &b, x - x_minus)),
+        (Err(_), Err(_)) => None,
+    })
+}
+
 /// The outputs' derivatives of a substepped step's map by central
 /// differences ([`STEP_MAP_DIFFERENCE`]), each difference the step taken
-/// again from the muscle before it in the same pieces.
+/// again from the muscle before it in the same pieces. Where the pieces do
+/// not converge on one side of an input (a step at the edge of what its
+/// Newton iteration takes), that input's column is the one-sided
+/// difference from the step re-run at its own inputs; where they converge
+/// on neither side, the column of `last_piece` (the last substep's map,
+/// its start history fixed: [`Committed::piece_jacobian`]), so that a
+/// converged step always has a derivative.
 fn step_map_jacobian(
     step: &Substepped,
     p: &Params,
     l0: f64,
     area: f64,
+    last_piece: impl Fn() -> Result<OutputJacobian, String>,
 ) -> Result<OutputJacobian, String> {
     let l = step.level;
     let decay = Decay::new(l.s, l.h).value;
@@ -642,22 +682,64 @@ fn step_map_jacobian(
     };
     let (length, u) = (step.end_length, step.level.u);
     let dl = STEP_MAP_DIFFERENCE * l0;
-    let (longer, shorter) = (outputs_at(length + dl, u)?, outputs_at(length - dl, u)?);
     let (lo, hi) = (
         (u - STEP_MAP_DIFFERENCE).max(0.0),
         (u + STEP_MAP_DIFFERENCE).min(1.0),
     );
-    let (more, less) = (outputs_at(length, hi)?, outputs_at(length, lo)?);
-    Ok(difference_columns(
-        (&longer, &shorter, 2.0 * dl),
-        (&more, &less, hi - lo),
-        1.0,
-    ))
+    let centre = OnceLock::new();
+    let centre = || centre.get_or_init(|| outputs_at(length, u)).clone();
+    let by_length = difference_column(
+        outputs_at(length + dl, u),
+        outputs_at(length - dl, u),
+        (length + dl, length - dl, length),
+        centre,
+    )?;
+    let by_command = difference_column(
+        outputs_at(length, hi),
+        outputs_at(length, lo),
+        (hi, lo, u),
+        centre,
+    )?;
+    let piece = OnceLock::new();
+    let from_piece = |k: usize| -> Result<Outputs, String> {
+        let j = piece.get_or_init(&last_piece).clone()?;
+        Ok(std::array::from_fn(|o| j[o][k]))
+    };
+    let by_length = match by_length {
+        Some(c) => c,
+        None => from_piece(0)?,
+    };
+    let by_command = match by_command {
+        Some(c) => c,
+        None => from_piece(1)?,
+    };
+    Ok(std::array::from_fn(|o| [by_length[o], by_command[o]]))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A side of a difference that fails gives the one-sided difference
+    /// against the centre; both failing give no column; both present the
+    /// central one (the centre not asked).
+    #[test]
+    fn a_failed_side_of_a_difference_falls_back_to_one_side() {
+        let y = |v: f64| -> Result<Outputs, String> { Ok([v; N_QUANTITIES]) };
+        let fail = || -> Result<Outputs, String> { Err("no convergence".into()) };
+        let xs = (1.1, 0.9, 1.0);
+        let central = difference_column(y(5.0), y(1.0), xs, || panic!("centre asked")).unwrap();
+        assert!(central.unwrap().iter().all(|d| (d - 20.0).abs() < 1e-9));
+        let plus_only = difference_column(y(5.0), fail(), xs, || y(2.0)).unwrap();
+        assert!(plus_only.unwrap().iter().all(|d| (d - 30.0).abs() < 1e-9));
+        let minus_only = difference_column(fail(), y(1.0), xs, || y(2.0)).unwrap();
+        assert!(minus_only.unwrap().iter().all(|d| (d - 10.0).abs() < 1e-9));
+        assert!(difference_column(fail(), fail(), xs, || y(2.0))
+            .unwrap()
+            .is_none());
+        // A centre that cannot be re-run is the error it gives.
+        assert!(difference_column(y(5.0), fail(), xs, fail).is_err());
+    }
     use crate::fe::mesh::{LUMPED, LUMPED_GRADING};
     use crate::fe::tangent::TangentCache;
     use crate::specimen::{LENGTH as L0, MEAN_AREA};
