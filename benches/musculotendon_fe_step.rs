@@ -28,20 +28,26 @@
 //!
 //! Reported per workload and h: mean and median wall time per step of each
 //! model (median over the runs), the ratio unit / muscle (median of the
-//! per-run ratios, range in brackets), and, counted in-process on the same
-//! inputs, the FE Newton solves (linear solves) per step of each and the
-//! unit's equilibrium trials (FE step maps) per step, its distribution, and
-//! the force at the end (the muscle's and the unit's tendon force: equal to
-//! the equilibrium's tolerance). `--in-process` prints only the counts (no
+//! per-run ratios, range in brackets), and, in-process on the same inputs,
+//! the wall time of each model's fmi2DoStep per step (not deterministic: a
+//! ratio of the same run), the FE Newton solves (linear solves), tangent
+//! factorisations and residual evaluations per step of each (the muscle's
+//! from its step map run beside it, [`Shadow`]), the unit's equilibrium
+//! trials (FE step maps) per step, its distribution, and the force at the
+//! end (the muscle's and the unit's tendon force: equal to the
+//! equilibrium's tolerance). `--in-process` prints only the counts (no
 //! FMU needed); `--only NAME` runs one workload; `--runs N` (default 3).
 
 use std::ffi::c_uint;
 use std::time::Instant;
 
+use hill_muscle::fe::mesh::FibreLayout;
+use hill_muscle::fe::step_map::{discretization, Committed, StepLevel};
 use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::Model;
-use hill_muscle::fmus::hillfe::HillFE;
+use hill_muscle::fmus::hillfe::{HillFE, DEFAULT_GRADING, DEFAULT_MESH};
 use hill_muscle::fmus::musculotendonfe::MusculotendonFe;
+use hill_muscle::law::activation::Decay;
 use hill_muscle::law::params::{TendonParamId, TENDON_PARAMETERS};
 use hill_muscle::law::tendon::Tendon;
 use hill_muscle::specimen::{LENGTH as L0, MEAN_AREA};
@@ -105,13 +111,99 @@ fn unit_parameters() -> Vec<(&'static str, f64)> {
     v
 }
 
+/// FE work per step, averaged over a run: Newton solves (linear solves),
+/// tangents factorised, residuals evaluated.
+#[derive(Clone, Copy, Default)]
+struct Work {
+    solves: f64,
+    factorizations: f64,
+    residuals: f64,
+}
+
+impl Work {
+    fn add(&mut self, solves: usize, factorizations: usize, residuals: usize) {
+        self.solves += solves as f64;
+        self.factorizations += factorizations as f64;
+        self.residuals += residuals as f64;
+    }
+
+    fn per(self, n: usize) -> Work {
+        let n = n as f64;
+        Work {
+            solves: self.solves / n,
+            factorizations: self.factorizations / n,
+            residuals: self.residuals / n,
+        }
+    }
+}
+
 /// One workload's inputs at step size `h`: per step the command, the
 /// muscle's length and the unit's path, with the muscle's in-process
-/// solves per step and its force at the end.
+/// work per step and its force at the end.
 struct Drive {
     steps: Vec<(f64, f64, f64)>,
-    solves: f64,
+    work: Work,
     force: f64,
+    /// In-process wall time of its fmi2DoStep calls, per step [s].
+    time: f64,
+}
+
+/// `HillMuscleFE`'s step map outside the FMU, to count its factorisations
+/// and residuals: [`Committed::step`] as its fmi2DoStep takes it (default
+/// mesh and law, activation level from the command), checked against the
+/// model's force bit for bit every step.
+struct Shadow {
+    state: Committed,
+    params: hill_muscle::law::Params,
+    dynamics: bool,
+    decay: Option<Decay>,
+}
+
+impl Shadow {
+    fn new(dynamics: bool) -> Shadow {
+        let params = hill_muscle::law::Params::default();
+        let disc = discretization(
+            None,
+            L0,
+            MEAN_AREA,
+            DEFAULT_MESH,
+            DEFAULT_GRADING,
+            FibreLayout::Axial,
+        )
+        .expect("the default mesh");
+        let da_du = if dynamics { 0.0 } else { 1.0 };
+        let st = Committed::initialize(disc, &params, MEAN_AREA, L0, 0.0, da_du)
+            .expect("HillMuscleFE's initialization");
+        Shadow {
+            state: st.state,
+            params,
+            dynamics,
+            decay: None,
+        }
+    }
+
+    /// The step to length `l` under command `u`: its force and work.
+    fn step(&mut self, u: f64, l: f64, h: f64) -> (f64, (usize, usize, usize)) {
+        let p = &self.params;
+        let decay = Decay::for_step(self.decay, p.s, h);
+        let level = StepLevel::new(
+            self.dynamics,
+            p.s,
+            self.state.last.activation,
+            u,
+            0.0,
+            h,
+            decay.value,
+        );
+        let st = self
+            .state
+            .step(p, MEAN_AREA, level, l, None)
+            .expect("the workload's step");
+        self.decay = Some(decay);
+        self.state = st.state;
+        let force = st.outputs[hill_muscle::fe::step_map::Quantity::Force as usize];
+        (force, (st.iterations, st.factorizations, st.residuals))
+    }
 }
 
 /// `HillMuscleFE` in-process on `inputs`: the drive of both models.
@@ -126,15 +218,22 @@ fn drive(inputs: Inputs, h: f64, duration: f64) -> Drive {
     m.initialize().expect("HillMuscleFE initializes");
     let (activation, length) = (id::<HillFE>("activation"), id::<HillFE>("length"));
     let (force, solves) = (id::<HillFE>("force"), id::<HillFE>("newton_iterations"));
+    let mut shadow = Shadow::new(m.get_boolean(id::<HillFE>("activation_dynamics")));
     let n = (duration / h).round() as usize;
-    let (mut steps, mut total, mut f) = (Vec::with_capacity(n), 0i64, 0.0);
+    let (mut steps, mut work, mut f) = (Vec::with_capacity(n), Work::default(), 0.0);
+    let mut time = 0.0;
     for i in 0..n {
         let (u, l) = inputs(i as f64 * h, (i + 1) as f64 * h);
         m.set_real(activation, u).unwrap();
         m.set_real(length, l).unwrap();
+        let t = Instant::now();
         m.do_step(i as f64 * h, h).expect("the workload's step");
+        time += t.elapsed().as_secs_f64();
         f = m.get_real(force);
-        total += i64::from(m.get_integer(solves));
+        let (fs, (s, k, r)) = shadow.step(u, l, h);
+        assert_eq!(fs, f, "the shadow step map is HillMuscleFE's");
+        assert_eq!(s as i32, m.get_integer(solves));
+        work.add(s, k, r);
         let lt = if f > 0.0 {
             tendon.slack_length * (1.0 + tendon.strain_at(f))
         } else {
@@ -144,15 +243,17 @@ fn drive(inputs: Inputs, h: f64, duration: f64) -> Drive {
     }
     Drive {
         steps,
-        solves: total as f64 / n as f64,
+        work: work.per(n),
         force: f,
+        time: time / n as f64,
     }
 }
 
-/// The unit in-process on the drive: FE solves and trials per step, the
+/// The unit in-process on the drive: FE work and trials per step, the
 /// steps by their trials (1, 2, 3, more), the tendon force at the end and
-/// the largest |fibre length − the muscle's length|.
-fn unit_counts(d: &Drive, h: f64) -> (f64, f64, [usize; 4], f64, f64) {
+/// the largest |fibre length − the muscle's length|, and the in-process
+/// wall time of its fmi2DoStep calls per step [s].
+fn unit_counts(d: &Drive, h: f64) -> (Work, f64, [usize; 4], f64, f64, f64) {
     let mut m = MusculotendonFe::new();
     for (name, v) in unit_parameters() {
         m.set_real(id::<MusculotendonFe>(name), v).unwrap();
@@ -166,24 +267,29 @@ fn unit_counts(d: &Drive, h: f64) -> (f64, f64, [usize; 4], f64, f64) {
         id::<MusculotendonFe>("force"),
         id::<MusculotendonFe>("fibre_length"),
     );
-    let (mut solves, mut trials, mut by, mut dev) = (0usize, 0u64, [0usize; 4], 0.0f64);
+    let (mut work, mut trials, mut by, mut dev) = (Work::default(), 0u64, [0usize; 4], 0.0f64);
+    let mut time = 0.0;
     for (i, &(u, l, path)) in d.steps.iter().enumerate() {
         m.set_real(activation, u).unwrap();
         m.set_real(length, path).unwrap();
+        let t = Instant::now();
         m.do_step(i as f64 * h, h).expect("the unit's step");
+        time += t.elapsed().as_secs_f64();
         let (s, t) = m.last_step_work();
-        solves += s;
+        let unit = m.unit().expect("the unit has stepped");
+        work.add(s, unit.factorizations, unit.residuals);
         trials += u64::from(t);
         by[(t as usize).clamp(1, 4) - 1] += 1;
         dev = dev.max((m.get_real(fibre) - l).abs());
     }
-    let n = d.steps.len() as f64;
+    let n = d.steps.len();
     (
-        solves as f64 / n,
-        trials as f64 / n,
+        work.per(n),
+        trials as f64 / n as f64,
         by,
         m.get_real(force),
         dev,
+        time / n as f64,
     )
 }
 
@@ -262,12 +368,22 @@ fn main() {
         }
         for h in STEPS {
             let d = drive(inputs, h, duration);
-            let (solves, trials, by, unit_force, dev) = unit_counts(&d, h);
+            let (w, trials, by, unit_force, dev, time) = unit_counts(&d, h);
+            let solves = w.solves;
             counts.push(format!(
-                "| {name} | {} | {:.3} | {solves:.3} | {:.2} | {trials:.3} | {}/{}/{}/{} | {:.9}; {unit_force:.9} | {dev:.1e} |",
+                "| {name} | {} | {:.3}; {:.3} ({:.2}×) | {:.3}; {solves:.3} ({:.2}×) | {:.3}; {:.3} ({:.2}×) | {:.2}; {:.2} ({:.2}×) | {trials:.3} | {}/{}/{}/{} | {:.9}; {unit_force:.9} | {dev:.1e} |",
                 h * 1e3,
-                d.solves,
-                solves / d.solves,
+                d.time * 1e3,
+                time * 1e3,
+                time / d.time,
+                d.work.solves,
+                solves / d.work.solves,
+                d.work.factorizations,
+                w.factorizations,
+                w.factorizations / d.work.factorizations,
+                d.work.residuals,
+                w.residuals,
+                w.residuals / d.work.residuals,
                 by[0],
                 by[1],
                 by[2],
@@ -306,15 +422,15 @@ fn main() {
                 "{{\"bench\":\"musculotendon_fe_step\",\"workload\":\"{name}\",\"h\":{h},\"ratio_mean\":{:.3},\"ratio_median\":{:.3},\"solves\":[{:.3},{solves:.3}],\"trials\":{trials:.3}}}",
                 median(rm),
                 median(rd),
-                d.solves,
+                d.work.solves,
             );
         }
     }
     println!();
-    println!("Work per step, in-process on the same inputs (deterministic)");
+    println!("Work per step, in-process on the same inputs (deterministic but the times)");
     println!();
-    println!("| workload | h (ms) | FE solves/step, muscle | FE solves/step, unit | ratio | trials/step | steps by trials 1/2/3/more | force at the end, muscle; unit (N) | largest fibre length − muscle length (m) |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| workload | h (ms) | ms/step in-process, muscle; unit (ratio) | FE solves/step, muscle; unit (ratio) | factorisations/step, muscle; unit (ratio) | residuals/step, muscle; unit (ratio) | trials/step | steps by trials 1/2/3/more | force at the end, muscle; unit (N) | largest fibre length − muscle length (m) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for row in counts {
         println!("{row}");
     }

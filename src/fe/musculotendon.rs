@@ -126,6 +126,10 @@ pub struct MusculotendonFE {
     pub iterations: usize,
     /// FE step maps the last step evaluated (trials).
     pub trials: u32,
+    /// Tangents factorised and residuals evaluated by the last step's FE
+    /// solves, every trial (not part of the saved state: 0 when restored).
+    pub factorizations: usize,
+    pub residuals: usize,
 }
 
 /// The muscle's geometry and law: what every call needs.
@@ -253,6 +257,8 @@ fn warm_step(
         state: Committed::new(muscle, last, None),
         outputs,
         iterations: adv.iterations,
+        factorizations: adv.factorizations,
+        residuals: adv.residuals,
     })
 }
 
@@ -263,6 +269,8 @@ struct Trials {
     last: Option<(f64, f64)>,
     slope: f64,
     iterations: usize,
+    factorizations: usize,
+    residuals: usize,
     trials: u32,
 }
 
@@ -273,6 +281,8 @@ impl Trials {
             last: None,
             slope,
             iterations: 0,
+            factorizations: 0,
+            residuals: 0,
             trials: 0,
         }
     }
@@ -292,6 +302,8 @@ impl Trials {
         }
         self.last = Some((l, f));
         self.iterations += s.iterations;
+        self.factorizations += s.factorizations;
+        self.residuals += s.residuals;
         self.trials += 1;
         self.kept = Some(s);
         MuscleForce {
@@ -450,6 +462,8 @@ impl MusculotendonFE {
             outputs,
             iterations: t.iterations,
             trials: t.trials,
+            factorizations: t.factorizations,
+            residuals: t.residuals,
         }
     }
 

@@ -313,12 +313,15 @@ pub struct Committed {
 }
 
 /// A committed state with its outputs and the Newton iterations that led
-/// to it.
+/// to it, with the tangents factorised and the residuals evaluated on the
+/// way (the solver's counts, [`crate::fe::newton::Solution`]).
 #[derive(Clone, Debug)]
 pub struct Stepped {
     pub state: Committed,
     pub outputs: Outputs,
     pub iterations: usize,
+    pub factorizations: usize,
+    pub residuals: usize,
 }
 
 impl Committed {
@@ -359,6 +362,8 @@ impl Committed {
             state: Committed::new(muscle, last, None),
             outputs,
             iterations: s.iterations,
+            factorizations: s.factorizations,
+            residuals: s.residuals,
         })
     }
 
@@ -409,6 +414,8 @@ impl Committed {
             state: Committed::new(adv.muscle, last, substepped),
             outputs,
             iterations: adv.iterations,
+            factorizations: adv.factorizations,
+            residuals: adv.residuals,
         })
     }
 

@@ -395,6 +395,11 @@ impl<S: Scene> MusculotendonFEModel<S> {
             .as_ref()
             .map_or((0, 0), |s| (s.iterations, s.trials))
     }
+
+    /// The committed unit (`None` before initialization).
+    pub fn unit(&self) -> Option<&MusculotendonFE> {
+        self.state.as_ref()
+    }
 }
 
 impl<S: Scene> Model for MusculotendonFEModel<S> {

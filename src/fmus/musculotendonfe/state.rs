@@ -212,6 +212,8 @@ fn restore_unit(u: UnitState, p: &Params) -> Result<MusculotendonFE, String> {
         outputs: u.outputs,
         iterations: usize::try_from(u.iterations).map_err(|e| e.to_string())?,
         trials: u32::try_from(u.trials).map_err(|e| e.to_string())?,
+        factorizations: 0,
+        residuals: 0,
     };
     check_muscle_outputs(&mt, p)?;
     check_unit_outputs(&mt)?;
