@@ -636,7 +636,7 @@ pub fn end_length(length: f64, rate: f64, h: f64, p: &Params, l0: f64) -> Result
 /// One input's column of [`step_map_jacobian`], the outputs at input
 /// x₊ = `xs.0` and x₋ = `xs.1` about x = `xs.2`: (y₊ − y₋)/(x₊ − x₋), or
 /// one-sided against the outputs at x (`centre`) where one side failed,
-/// `None` where both did.
+/// `None` where both did or the side left is x itself.
 fn difference_column(
     plus: Result<Outputs, String>,
     minus: Result<Outputs, String>,
@@ -649,9 +649,11 @@ fn difference_column(
     };
     Ok(match (plus, minus) {
         (Ok(a), Ok(b)) => Some(d(&a, &b, x_plus - x_minus)),
-        (Ok(a), Err(_)) => Some(d(&a, &centre()?, x_plus - x)),
-        (Err(_), Ok(b)) => Some(d(&centre()?, &b, x - x_minus)),
-        (Err(_), Err(_)) => None,
+        (Ok(a), Err(_)) if x_plus != x => Some(d(&a, &centre()?, x_plus - x)),
+        (Err(_), Ok(b)) if x != x_minus => Some(d(&centre()?, &b, x - x_minus)),
+        // Both failed, or the side left is the centre itself (the command
+        // at an end of [0, 1]).
+        _ => None,
     })
 }
 
@@ -742,6 +744,16 @@ mod tests {
         let minus_only = difference_column(fail(), y(1.0), xs, || y(2.0)).unwrap();
         assert!(minus_only.unwrap().iter().all(|d| (d - 10.0).abs() < 1e-9));
         assert!(difference_column(fail(), fail(), xs, || y(2.0))
+            .unwrap()
+            .is_none());
+        // At an end of the command's range the side left is the centre:
+        // no one-sided difference (it would divide by zero).
+        let at_end = (1.0, 0.9, 1.0);
+        assert!(difference_column(y(5.0), fail(), at_end, || y(5.0))
+            .unwrap()
+            .is_none());
+        let at_start = (0.1, 0.0, 0.0);
+        assert!(difference_column(fail(), y(1.0), at_start, || y(1.0))
             .unwrap()
             .is_none());
         // A centre that cannot be re-run is the error it gives.
