@@ -568,39 +568,35 @@ impl Committed {
     /// the equilibrium's sensitivities from the converged tangent, the
     /// last (sub)step's start history held fixed.
     fn piece_jacobian(&self, p: &Params, l0: f64, area: f64) -> Result<OutputJacobian, String> {
-        {
-            {
-                let (m, last) = (&self.muscle, &self.last);
-                let a = last.activation;
-                let ev = m
-                    .disc
-                    .evaluate(p, &m.x, a, &last.start, last.rate(), true)?;
-                let factor = m
-                    .disc
-                    .pattern
-                    .factorize(ev.tangent.as_ref().ok_or("no tangent")?)?;
-                let (dx_dl, dx_da, _) = m.disc.sensitivities(&ev, &factor);
-                let at = |dx: &[f64], e: f64, dl: f64, da: f64| -> Result<Outputs, String> {
-                    let x: Vec<f64> = m.x.iter().zip(dx).map(|(x, d)| x + e * d).collect();
-                    let ev = m
-                        .disc
-                        .evaluate(p, &x, a + da, &last.start, last.rate(), false)?;
-                    Ok(outputs(&m.disc, area, m.length + dl, &ev, a + da))
-                };
-                let el = OUTPUT_DIRECTION_STEP * l0;
-                let (longer, shorter) = (at(&dx_dl, el, el, 0.0)?, at(&dx_dl, -el, -el, 0.0)?);
-                let (up, down) = (
-                    OUTPUT_DIRECTION_STEP.min(1.0 - a),
-                    OUTPUT_DIRECTION_STEP.min(a),
-                );
-                let (more, less) = (at(&dx_da, up, 0.0, up)?, at(&dx_da, -down, 0.0, -down)?);
-                Ok(difference_columns(
-                    (&longer, &shorter, 2.0 * el),
-                    (&more, &less, up + down),
-                    last.da_du,
-                ))
-            }
-        }
+        let (m, last) = (&self.muscle, &self.last);
+        let a = last.activation;
+        let ev = m
+            .disc
+            .evaluate(p, &m.x, a, &last.start, last.rate(), true)?;
+        let factor = m
+            .disc
+            .pattern
+            .factorize(ev.tangent.as_ref().ok_or("no tangent")?)?;
+        let (dx_dl, dx_da, _) = m.disc.sensitivities(&ev, &factor);
+        let at = |dx: &[f64], e: f64, dl: f64, da: f64| -> Result<Outputs, String> {
+            let x: Vec<f64> = m.x.iter().zip(dx).map(|(x, d)| x + e * d).collect();
+            let ev = m
+                .disc
+                .evaluate(p, &x, a + da, &last.start, last.rate(), false)?;
+            Ok(outputs(&m.disc, area, m.length + dl, &ev, a + da))
+        };
+        let el = OUTPUT_DIRECTION_STEP * l0;
+        let (longer, shorter) = (at(&dx_dl, el, el, 0.0)?, at(&dx_dl, -el, -el, 0.0)?);
+        let (up, down) = (
+            OUTPUT_DIRECTION_STEP.min(1.0 - a),
+            OUTPUT_DIRECTION_STEP.min(a),
+        );
+        let (more, less) = (at(&dx_da, up, 0.0, up)?, at(&dx_da, -down, 0.0, -down)?);
+        Ok(difference_columns(
+            (&longer, &shorter, 2.0 * el),
+            (&more, &less, up + down),
+            last.da_du,
+        ))
     }
 }
 
