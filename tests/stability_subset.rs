@@ -577,7 +577,9 @@ fn the_units_capped_programs_stay_short_of_rupture() {
 /// The FE unit's capped programs stay short of rupture, by its own relaxed
 /// equilibrium (`RelaxedUnit`: the FE specimen at the matrix's 6 × 1 mesh,
 /// which carries more than the 1D law at the same stretch, 3.6 F0 at
-/// stretch 2.0 with D = 1e-4): at every parameter set and D of the grid,
+/// stretch 2.0 with D = 1e-4): at each parameter set, paired with one D of
+/// the grid so that every D from 1e-9 up is met once (the full product
+/// costs some 40 FE initializations a case; the stability example runs it),
 /// at the cap the relaxed unit holds its fibres at the cap, they carry at
 /// most F0 (F0 within 1e-6, or less at 2.0), its tendon's strain is at most
 /// the tendon's strain at F0, and F0 plus the largest active force stays below the
@@ -596,12 +598,24 @@ fn the_fe_units_capped_programs_stay_short_of_rupture() {
         f0: 1.0,
     }
     .strain_at(RELAXED_FORCE_CAP);
-    // One thread per parameter set: each case costs some 40 FE
-    // initializations.
+    // Each parameter set with one D; paper-max at D = 1e-4 is where the
+    // clamped FE departs most from the law (cap 1.82 against its 2.0).
+    let pairs = [
+        (ParamSet::Table2, 1e-9),
+        (ParamSet::PaperMin, 1e-6),
+        (ParamSet::PaperMax, 1e-4),
+    ];
+    assert_eq!(
+        pairs.map(|(_, d)| d)[..],
+        D_VALUES
+            .into_iter()
+            .filter(|d| *d >= 1e-9)
+            .collect::<Vec<_>>()[..]
+    );
+    // One thread per case: each costs some 40 FE initializations.
     std::thread::scope(|scope| {
-        for params in ParamSet::ALL {
+        for (params, d_comp) in pairs {
             scope.spawn(move || {
-        for d_comp in D_VALUES.into_iter().filter(|d| *d >= 1e-9) {
             let cell = Cell {
                 d_comp,
                 alpha: 10.0,
@@ -647,8 +661,7 @@ fn the_fe_units_capped_programs_stay_short_of_rupture() {
                 let r = unit.at(p).unwrap();
                 assert!((r.stretch - s).abs() < 1e-6, "{s}: {r:?}");
             }
-        }
-        });
+            });
         }
     });
 }
