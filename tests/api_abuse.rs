@@ -62,7 +62,6 @@ impl Subject for OneD {
     const FUNCTIONS_PER_SEQUENCE: usize = 1;
     const LARGEST_INTEGER_TRIED: i32 = 100; // (no Integer variables)
     const INIT_MAY_FAIL: bool = false;
-    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = None;
 }
 
 testkit::harness_tests!(OneD);

@@ -66,7 +66,7 @@
 //!   ([`Fe::INIT_MAY_FAIL`] is false): every parameter at either end of
 //!   its range, the others at their defaults, initializes.
 //! - **Directional derivatives** of every Real output, as for
-//!   `HillMuscle1D` ([`Fe::DERIVATIVE_OUTPUTS`] is `None`).
+//!   `HillMuscle1D`.
 //! - **A larger FMU state**: positions, element histories, the factorised
 //!   tangent's anchor and the predictor's trend, and the geometry and mesh
 //!   the committed muscle was built with. Every snapshot must deserialize
@@ -169,7 +169,6 @@ impl Subject for Fe {
     const FUNCTIONS_PER_SEQUENCE: usize = usize::MAX;
     const LARGEST_INTEGER_TRIED: i32 = 2;
     const INIT_MAY_FAIL: bool = false;
-    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = None;
 }
 
 /// Offset of `n_axial` (followed by `n_radial`, both i32) in a serialized

@@ -22,7 +22,7 @@
 //! `API_ABUSE_CASES=1000000 cargo test --release --test api_abuse_mt`.
 
 use hill_muscle::fmus::musculotendon1d::Musculotendon;
-use testkit::api_abuse::{Integers, Subject, UNIT_DERIVATIVE_OUTPUTS};
+use testkit::api_abuse::{Integers, Subject};
 
 /// `HillMusculotendon1D` as the harness's subject.
 pub struct Unit;
@@ -45,7 +45,6 @@ impl Subject for Unit {
     const FUNCTIONS_PER_SEQUENCE: usize = 1;
     const LARGEST_INTEGER_TRIED: i32 = 100; // (no Integer variables)
     const INIT_MAY_FAIL: bool = false;
-    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = Some(UNIT_DERIVATIVE_OUTPUTS);
 }
 
 testkit::harness_tests!(Unit);

@@ -35,7 +35,7 @@
 #![cfg(feature = "fe")]
 
 use hill_muscle::fmus::musculotendonfe::MusculotendonFe;
-use testkit::api_abuse::{Integers, Subject, MESH_1X1, MESH_2X1, UNIT_DERIVATIVE_OUTPUTS};
+use testkit::api_abuse::{Integers, Subject, MESH_1X1, MESH_2X1};
 
 /// `HillMusculotendonFE` as the harness's subject.
 pub struct FeUnit;
@@ -59,7 +59,6 @@ impl Subject for FeUnit {
     const FUNCTIONS_PER_SEQUENCE: usize = usize::MAX;
     const LARGEST_INTEGER_TRIED: i32 = 2;
     const INIT_MAY_FAIL: bool = false;
-    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]> = Some(UNIT_DERIVATIVE_OUTPUTS);
 }
 
 testkit::harness_tests!(FeUnit, release_only);

@@ -18,6 +18,12 @@ pub const SUBSTEP_TOLERANCE_RANGE: Range = Range {
     max: 1.0,
 };
 
+/// The refusal of a directional derivative of `stiffness`, itself
+/// d force / d length (docs/reference/conventions.md).
+pub fn stiffness_not_differentiated() -> ModelError {
+    ModelError("stiffness is itself d force / d length: its derivatives are not provided".into())
+}
+
 /// The units both muscle FMUs declare.
 pub fn units() -> Vec<Unit> {
     let u = |name, kg, m, s| Unit { name, kg, m, s };

@@ -218,9 +218,7 @@ impl<S: Scene> Model for Hill1DModel<S> {
             }
         };
         match unknown {
-            Var::Out(Output::Stiffness) => Err(ModelError(
-                "stiffness is itself d force / d length: its derivatives are not provided".into(),
-            )),
+            Var::Out(Output::Stiffness) => Err(super::common::stiffness_not_differentiated()),
             Var::Out(o) => Ok(self.muscle.partial(o, column)),
             _ => Err(ModelError(
                 "directional derivatives are provided for the outputs".into(),

@@ -337,9 +337,9 @@ impl<S: Scene> Model for MusculotendonModel<S> {
             }
         };
         match unknown {
-            Var::Out(MtOutput::Unit(UnitOutput::Stiffness)) => Err(ModelError(
-                "stiffness is itself d force / d length: its derivatives are not provided".into(),
-            )),
+            Var::Out(MtOutput::Unit(UnitOutput::Stiffness)) => {
+                Err(super::common::stiffness_not_differentiated())
+            }
             Var::Out(MtOutput::Unit(o)) => Ok(self.mt.partial(o, column)),
             Var::Out(MtOutput::ActivationLevel) => {
                 Ok(self.mt.muscle.partial(Output::ActivationLevel, column))

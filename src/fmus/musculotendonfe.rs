@@ -496,9 +496,9 @@ impl<S: Scene> Model for MusculotendonFEModel<S> {
             .as_ref()
             .ok_or_else(|| ModelError("the model is not initialized".into()))?;
         match unknown {
-            Var::Out(MtOutput::Unit(UnitOutput::Stiffness)) => Err(ModelError(
-                "stiffness is itself d force / d length: its derivatives are not provided".into(),
-            )),
+            Var::Out(MtOutput::Unit(UnitOutput::Stiffness)) => {
+                Err(super::common::stiffness_not_differentiated())
+            }
             Var::Out(MtOutput::Unit(o)) => {
                 let unit = self.tendon_unit();
                 st.partial(&self.setup(&unit), fe_output(o), by_length)

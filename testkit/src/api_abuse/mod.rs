@@ -76,7 +76,7 @@
 //!    outside its declared `min`/`max` (docs/reference/bad-input.md: a parameter
 //!    outside its range is `fmi2Error`), a directional derivative of an
 //!    output the model does not differentiate with respect to an input
-//!    ([`Subject::DERIVATIVE_OUTPUTS`]) or with respect to anything but a
+//!    ([`NOT_DIFFERENTIATED`]) or with respect to anything but a
 //!    Real input or (in initialization mode) a Real parameter, a step size that is not finite
 //!    and positive, a communication point more than twice the tolerance
 //!    away from the FMU's time, a step ending more than twice the tolerance past the stop

@@ -16,16 +16,10 @@ pub const MESH_1X1: Integers = &[("n_axial", 1), ("n_radial", 1)];
 /// An FE subject's smallest mesh with free nodes (one interior slice):
 /// Newton, line search and substeps.
 pub const MESH_2X1: Integers = &[("n_axial", 2), ("n_radial", 1)];
-/// The Real outputs of a musculotendon unit whose derivatives are asked:
-/// all but `stiffness`, itself d force / d length.
-pub const UNIT_DERIVATIVE_OUTPUTS: &[&str] = &[
-    "force",
-    "stress",
-    "fibre_length",
-    "tendon_strain",
-    "pennation",
-    "activation_level",
-];
+/// The Real output no model differentiates (docs/reference/conventions.md:
+/// itself d force / d length); `fmi2GetDirectionalDerivative` of any other Real
+/// output with respect to a Real input is defined.
+pub const NOT_DIFFERENTIATED: &str = "stiffness";
 
 /// What the harness needs to know about the FMU it drives beyond its
 /// variable table (value references, types, causalities, start values and
@@ -90,9 +84,6 @@ pub trait Subject {
     /// Whether `fmi2ExitInitializationMode` may refuse in-range parameters
     /// with `fmi2Error` (and a message, staying in initialization mode).
     const INIT_MAY_FAIL: bool;
-    /// The outputs `fmi2GetDirectionalDerivative` differentiates (`None`:
-    /// every Real output); any other unknown with a known is `fmi2Error`.
-    const DERIVATIVE_OUTPUTS: Option<&'static [&'static str]>;
 }
 
 /// The model's FMI functions (`hill_muscle::fmi2::api::*::<M>`, exactly
@@ -165,7 +156,6 @@ pub(crate) struct Profile {
     pub(crate) functions_per_sequence: usize,
     pub(crate) largest_integer_tried: i32,
     pub(crate) init_may_fail: bool,
-    pub(crate) derivative_outputs: Option<&'static [&'static str]>,
 }
 
 /// The installed subject: its settings, its model's FMI functions, variable
@@ -201,7 +191,6 @@ impl Installed {
                 functions_per_sequence: S::FUNCTIONS_PER_SEQUENCE,
                 largest_integer_tried: S::LARGEST_INTEGER_TRIED,
                 init_may_fail: S::INIT_MAY_FAIL,
-                derivative_outputs: S::DERIVATIVE_OUTPUTS,
             },
             abi: Abi::of::<S::M>(),
             variables: || {
@@ -349,10 +338,11 @@ pub(crate) fn table() -> &'static Table {
         let integers = (0..vars.len() as u32)
             .filter(|&i| matches!(vars[i as usize].ty, VarType::Integer { .. }))
             .collect();
-        let differentiated = match profile().derivative_outputs {
-            Some(names) => names.iter().map(|n| vr_of(n)).collect(),
-            None => outputs.clone(),
-        };
+        let differentiated = outputs
+            .iter()
+            .copied()
+            .filter(|&i| vars[i as usize].name != NOT_DIFFERENTIATED)
+            .collect();
         let length0 = match vars[vr_of("length") as usize].ty {
             VarType::Real { start: Some(s), .. } => s,
             other => panic!("length: {other:?}"),
