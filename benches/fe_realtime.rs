@@ -306,8 +306,8 @@ fn arm_in_process() {
         with(6, usize::MAX)
     );
     println!(
-        "Factorisations attempted (steps and derivatives): f32 Cholesky {}, f64 Cholesky {} (skipped as certainly failing: {}), LBLT {}, LU {}",
-        attempts.single, attempts.cholesky, attempts.cholesky_skipped, attempts.lblt, attempts.lu
+        "Factorisations attempted (steps and derivatives): f32 Cholesky {}, f64 Cholesky {} (skipped as certainly failing: {}), LBLT {} (in vain before an f64 Cholesky: {}), LU {}",
+        attempts.single, attempts.cholesky, attempts.cholesky_skipped, attempts.lblt, attempts.lblt_unused, attempts.lu
     );
     let mut order: Vec<usize> = (0..work.len()).collect();
     order.sort_by(|&a, &b| step[b].total_cmp(&step[a]));

@@ -250,6 +250,7 @@ pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64, Attempts) {
         cholesky: a.cholesky - initialization.cholesky,
         cholesky_skipped: a.cholesky_skipped - initialization.cholesky_skipped,
         lblt: a.lblt - initialization.lblt,
+        lblt_unused: a.lblt_unused - initialization.lblt_unused,
         lu: a.lu - initialization.lu,
     };
     (work, force, stiffness, attempts)

@@ -20,6 +20,9 @@ pub struct Attempts {
     pub cholesky_skipped: usize,
     /// Supernodal LBLᵀ factorisations.
     pub lblt: usize,
+    /// Of which computed in vain: before an f64 Cholesky factorisation that
+    /// succeeded (module `indefinite`).
+    pub lblt_unused: usize,
     /// Sparse LU factorisations.
     pub lu: usize,
 }
@@ -31,6 +34,7 @@ pub(super) struct Counters {
     pub(super) cholesky: AtomicUsize,
     pub(super) cholesky_skipped: AtomicUsize,
     pub(super) lblt: AtomicUsize,
+    pub(super) lblt_unused: AtomicUsize,
     pub(super) lu: AtomicUsize,
 }
 
@@ -49,6 +53,7 @@ impl Pattern {
             cholesky: get(&c.cholesky),
             cholesky_skipped: get(&c.cholesky_skipped),
             lblt: get(&c.lblt),
+            lblt_unused: get(&c.lblt_unused),
             lu: get(&c.lu),
         }
     }
