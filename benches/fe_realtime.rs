@@ -35,7 +35,8 @@
 //! `activated` (command 1 from t = 0, held at L0 for 0.5 s, then pulled at
 //! 5 mm/s to 20 % strain, 2.5 s) and `fast` (command 1 on [0.10, 0.15) s,
 //! L = L0 (1 + 0.05 sin(2π 5 t)), 0.6 s), and the arm's trace (each step's
-//! work and the time of its d force / d length).
+//! work and the time of its d force / d length, and the factorisations its
+//! steps attempted by kind).
 //!
 //! `--runs N` (default 3) repeats each row and reports the median of the runs'
 //! figures; `--only NAME` runs one workload once (for `perf record`);
@@ -268,7 +269,7 @@ fn in_process(only: Option<&str>) {
 /// d force / d length, and its most expensive steps.
 fn arm_in_process() {
     let trace = arm::load();
-    let (work, force, stiffness) = arm::in_process(&trace);
+    let (work, force, stiffness, attempts) = arm::in_process(&trace);
     let n = work.len() as f64;
     let mean = |f: &dyn Fn(&arm::Work) -> f64| work.iter().map(f).sum::<f64>() / n;
     let step: Vec<f64> = work.iter().map(|w| w.step + w.derivative).collect();
@@ -303,6 +304,10 @@ fn arm_in_process() {
         with(2, 2),
         with(3, 5),
         with(6, usize::MAX)
+    );
+    println!(
+        "Factorisations attempted (steps and derivatives): f32 Cholesky {}, f64 Cholesky {} (skipped as certainly failing: {}), LBLT {} (in vain before an f64 Cholesky: {}), LU {}",
+        attempts.single, attempts.cholesky, attempts.cholesky_skipped, attempts.lblt, attempts.lblt_unused, attempts.lu
     );
     let mut order: Vec<usize> = (0..work.len()).collect();
     order.sort_by(|&a, &b| step[b].total_cmp(&step[a]));

@@ -7,11 +7,12 @@
 //! (force), fmi2GetDirectionalDerivative (force; length) and fmi2GetReal
 //! (force, activation level, fibre stretch), all timed ([`cabi`]); and the
 //! same step map in-process ([`in_process`]), with the work of each step and
-//! of its derivative counted.
+//! of its derivative counted, and the factorisations attempted by kind.
 
 use std::ffi::{c_int, c_uint};
 use std::time::Instant;
 
+use hill_muscle::fe::assembly::Attempts;
 use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::step_map::{
     discretization, end_length, rate_step, Committed, LastStep, Quantity, StepLevel, Substepped,
@@ -175,8 +176,9 @@ pub struct Work {
 /// The FMU's step map on the trace in-process (its defaults: activation
 /// dynamics on, no substep control; the parameters `L0`, `area`,
 /// `initial_activation` of the trace): each step's [`Work`], the force and
-/// d force / d length at the end.
-pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64) {
+/// d force / d length at the end, and the factorisations the steps and
+/// their derivatives attempted (the initialization's not included).
+pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64, Attempts) {
     let p = Params::default();
     let param = |name: &str, default: f64| {
         trace
@@ -198,6 +200,7 @@ pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64) {
     let mut state = Committed::initialize(d, &p, area, trace.length0, a_init, 0.0)
         .expect("the arm's initial equilibrium")
         .state;
+    let initialization = state.muscle.disc.pattern.attempts();
     let decay = Decay::new(p.s, trace.h).value;
     let mut a = a_init;
     let (mut work, mut force, mut stiffness) = (Vec::new(), f64::NAN, f64::NAN);
@@ -241,5 +244,14 @@ pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64) {
         a = level.end;
         state = next;
     }
-    (work, force, stiffness)
+    let a = state.muscle.disc.pattern.attempts();
+    let attempts = Attempts {
+        single: a.single - initialization.single,
+        cholesky: a.cholesky - initialization.cholesky,
+        cholesky_skipped: a.cholesky_skipped - initialization.cholesky_skipped,
+        lblt: a.lblt - initialization.lblt,
+        lblt_unused: a.lblt_unused - initialization.lblt_unused,
+        lu: a.lu - initialization.lu,
+    };
+    (work, force, stiffness, attempts)
 }

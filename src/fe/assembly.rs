@@ -39,7 +39,11 @@
 //! instead of faer sorting and permuting the whole matrix, to the same bits.
 //! For Newton's directions the same Cholesky factorisation in single
 //! precision is taken where it is adequate for the matrix, the f64 one
-//! otherwise ([`Pattern::factorize_direction`], module `cholesky`). A
+//! otherwise ([`Pattern::factorize_direction`], module `cholesky`); when
+//! the single-precision one fails at a pivot, the LBLᵀ factorisation comes
+//! first and the f64 Cholesky one is skipped where it provably fails
+//! (module `indefinite`), to the same factor. [`Pattern::attempts`] counts
+//! the factorisations attempted, by kind. A
 //! system with a tangent close to one already factorised is solved by
 //! conjugate gradients with that factor as the preconditioner
 //! ([`Pattern::conjugate_gradients`], module `pcg`).
@@ -59,8 +63,11 @@ use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMat, SymbolicSpa
 use faer::{MatMut, Side};
 use nalgebra::{Matrix3, SMatrix};
 
+mod attempts;
 mod cholesky;
+mod indefinite;
 mod pcg;
+pub use attempts::Attempts;
 pub use cholesky::{Cholesky, Precision, MAX_SINGLE_ERROR};
 pub use pcg::{dot, Iterate};
 
@@ -95,6 +102,8 @@ pub struct Pattern {
     /// Whether [`Self::factorize_direction`] may take the single-precision
     /// factor (default; off: always [`Self::factorize`]'s, for comparisons).
     single: bool,
+    /// The factorisations attempted, by kind ([`Self::attempts`]).
+    counters: attempts::Counters,
 }
 
 /// Largest backward error ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) of the probe solve
@@ -211,6 +220,7 @@ impl Pattern {
             lblt: OnceLock::new(),
             lu: OnceLock::new(),
             single: true,
+            counters: Default::default(),
         })
     }
 
@@ -332,7 +342,14 @@ impl Pattern {
         if let Ok(llt) = self.factorize_llt(constrained) {
             return Ok(llt);
         }
-        let lblt = Factor::BunchKaufman(Arc::new(self.factorize_lblt(constrained)?));
+        let lblt = self.factorize_lblt(constrained)?;
+        self.accept_lblt(constrained, lblt)
+    }
+
+    /// [`Self::factorize_constrained`] after its Cholesky factorisation
+    /// failed: `lblt` when it passes the backward-error test, else LU.
+    fn accept_lblt(&self, constrained: &[f64], lblt: BunchKaufman) -> Result<Factor, String> {
+        let lblt = Factor::BunchKaufman(Arc::new(lblt));
         if self.backward_error(constrained, &lblt) <= MAX_BACKWARD_ERROR {
             return Ok(lblt);
         }
@@ -382,6 +399,7 @@ impl Pattern {
     /// into the permuted triangle ([`PermutedCholesky`]) and factorised
     /// there without faer's own permutation of the matrix.
     fn factorize_llt(&self, constrained: &[f64]) -> Result<Factor, String> {
+        attempts::count(&self.counters.cholesky);
         Ok(Factor::Cholesky(Arc::new(Cholesky::<f64>::new(
             &self.llt,
             constrained,
@@ -411,6 +429,7 @@ impl Pattern {
                 .map_err(|e| format!("symbolic LBLT factorisation failed: {e:?}"))
             })
             .clone()?;
+        attempts::count(&self.counters.lblt);
         let n = symbolic.nrows();
         // Fallible: the factor is the FE muscle's largest allocation
         // (crate::fe::memory), and its failure an error, not an abort.
@@ -462,6 +481,7 @@ impl Pattern {
                     .map_err(|e| format!("symbolic LU factorisation failed: {e:?}"))
             })
             .clone()?;
+        attempts::count(&self.counters.lu);
         let mat = SparseColMatRef::new(self.symbolic_ref(), constrained);
         // faer's LU allocates fallibly; its failure is an error here.
         let lu = Lu::try_new_with_symbolic(symbolic, mat).map_err(|e| match e {

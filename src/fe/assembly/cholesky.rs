@@ -34,6 +34,7 @@ use faer::sparse::SparseColMatRef;
 use faer::traits::ComplexField;
 use faer::MatMut;
 
+use super::attempts::count;
 use super::{try_filled, Factor, Pattern, PermutedCholesky};
 
 /// Largest estimated relative error of the single-precision factor's
@@ -71,6 +72,30 @@ impl Precision for f32 {
     }
 }
 
+/// Why a Cholesky factorisation failed: at a pivot that is not positive
+/// (the matrix is not numerically positive definite in that precision), or
+/// otherwise (memory, single precision's range or probe); its message
+/// either way.
+#[derive(Debug)]
+pub(super) enum Failure {
+    Pivot(String),
+    Other(String),
+}
+
+impl From<Failure> for String {
+    fn from(f: Failure) -> String {
+        match f {
+            Failure::Pivot(s) | Failure::Other(s) => s,
+        }
+    }
+}
+
+impl From<String> for Failure {
+    fn from(s: String) -> Failure {
+        Failure::Other(s)
+    }
+}
+
 /// A solve's workspace: the permuted right-hand side and faer's scratch.
 struct Workspace<T> {
     y: Vec<T>,
@@ -98,7 +123,7 @@ impl<T: Precision> Cholesky<T> {
         order: &Arc<PermutedCholesky>,
         constrained: &[f64],
         prescribed: &[bool],
-    ) -> Result<Cholesky<T>, String> {
+    ) -> Result<Cholesky<T>, Failure> {
         let what = if T::SINGLE {
             "the single-precision Cholesky factor"
         } else {
@@ -115,7 +140,7 @@ impl<T: Precision> Cholesky<T> {
         let mut scratch = MemBuffer::try_new(
             symbolic.factorize_numeric_llt_scratch::<T>(par, Default::default()),
         )
-        .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?;
+        .map_err(|e| Failure::Other(format!("not positive definite (Cholesky: {e:?})")))?;
         symbolic
             .factorize_numeric_llt(
                 &mut values,
@@ -126,12 +151,12 @@ impl<T: Precision> Cholesky<T> {
                 MemStack::new(&mut scratch),
                 Default::default(),
             )
-            .map_err(|e| format!("not positive definite (Cholesky: {e:?})"))?;
+            .map_err(|e| Failure::Pivot(format!("not positive definite (Cholesky: {e:?})")))?;
         let n = order.forward.len();
         let workspace = Workspace {
             y: try_filled(n, zero, what)?,
             stack: MemBuffer::try_new(symbolic.solve_in_place_scratch::<T>(1, par))
-                .map_err(|_| format!("out of memory for {what}'s solve"))?,
+                .map_err(|_| Failure::Other(format!("out of memory for {what}'s solve")))?,
         };
         let prescribed = if T::SINGLE {
             let mut p = try_filled(prescribed.len(), false, what)?;
@@ -198,8 +223,12 @@ impl Pattern {
     pub fn factorize_direction(&self, values: &[f64]) -> Result<Factor, String> {
         let constrained = self.constrained(values)?;
         if self.single {
-            if let Ok(single) = self.factorize_single(&constrained) {
-                return Ok(single);
+            match self.single_cholesky(&constrained) {
+                Ok(single) => return Ok(single),
+                // Not positive definite in f32: perhaps not in f64 either
+                // (module `indefinite`).
+                Err(Failure::Pivot(_)) => return self.factorize_indefinite(&constrained),
+                Err(Failure::Other(_)) => {}
             }
         }
         self.factorize_constrained(&constrained)
@@ -208,13 +237,21 @@ impl Pattern {
     /// The single-precision Cholesky factor of the constrained values, `Err`
     /// naming which of the module docs' conditions fails.
     pub(super) fn factorize_single(&self, constrained: &[f64]) -> Result<Factor, String> {
+        self.single_cholesky(constrained).map_err(String::from)
+    }
+
+    /// [`Self::factorize_single`], its failure at a pivot told apart.
+    fn single_cholesky(&self, constrained: &[f64]) -> Result<Factor, Failure> {
         let in_range = |v: &f64| {
             let a = v.abs();
             a == 0.0 || (a >= f32::MIN_POSITIVE as f64 && a <= f32::MAX as f64)
         };
         if !constrained.iter().all(in_range) {
-            return Err("a value out of single precision's normal range".into());
+            return Err(Failure::Other(
+                "a value out of single precision's normal range".into(),
+            ));
         }
+        count(&self.counters.single);
         let factor = Factor::SingleCholesky(Arc::new(Cholesky::<f32>::new(
             &self.llt,
             constrained,
@@ -224,9 +261,9 @@ impl Pattern {
         if error <= MAX_SINGLE_ERROR {
             Ok(factor)
         } else {
-            Err(format!(
+            Err(Failure::Other(format!(
                 "single precision's estimated relative error {error:e} on the probe"
-            ))
+            )))
         }
     }
 
@@ -370,8 +407,13 @@ mod tests {
         let constrained = d.pattern.constrained(&values).unwrap();
         let e = d.pattern.factorize_single(&constrained).err().unwrap();
         assert!(e.contains("error") || e.contains("positive"), "{e}");
+        let before = d.pattern.attempts();
         let f = d.pattern.factorize_direction(&values).unwrap();
         assert_eq!(f.kind(), FactorKind::Cholesky);
+        // Not skipped as indefinite (module `indefinite`): attempted.
+        let after = d.pattern.attempts();
+        assert_eq!(after.cholesky, before.cholesky + 1);
+        assert_eq!(after.cholesky_skipped, before.cholesky_skipped);
     }
 
     /// Newton's solves with the single factor end where those with the f64
