@@ -31,8 +31,9 @@ pub const AGREEMENT_TOL: f64 = 0.02;
 /// outcome does not depend on the machine's load. A cell past it is
 /// recorded as `timeout`. The reported `seconds` are wall time.
 pub const CELL_TIME_LIMIT: Duration = Duration::from_secs(120);
-/// A single FMI call that has not returned after this long is a hang: the
-/// watchdog names the cell and ends the process.
+/// A single FMI call (or a program's setup) that has not returned after
+/// this much CPU time of its thread is a hang: the watchdog names the cell
+/// and ends the process.
 pub const HANG_LIMIT: Duration = Duration::from_secs(300);
 /// The master's retry after a discard: the step cut into up to this many pieces.
 pub const MAX_RETRY_PIECES: usize = 1024;

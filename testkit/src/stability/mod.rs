@@ -56,7 +56,8 @@
 //! [`Watch`]), not wall time: a cell's outcome does not depend on what else
 //! the machine runs. The `seconds` a run reports are its wall time. A
 //! watchdog ends the process if one FMI call shows no sign of life for
-//! [`HANG_LIMIT`] of wall time.
+//! [`HANG_LIMIT`] of its thread's CPU time (so that load does not pass for a
+//! hang).
 
 use std::ffi::CString;
 use std::marker::PhantomData;

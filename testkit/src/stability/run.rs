@@ -6,10 +6,14 @@ use super::*;
 // Running a cell
 // ---------------------------------------------------------------------------
 
-/// What the watchdog sees of one worker thread.
+/// What the watchdog sees of one worker thread: its signs of life on the
+/// worker's own CPU-time clock, so that a loaded machine (or a stopped
+/// process) does not pass for a hang.
 pub struct Slot {
-    origin: Instant,
-    /// Milliseconds since `origin` at the worker's last sign of life.
+    /// The CPU-time clock of the thread running the cell (set when its
+    /// [`Watch`] is made, on that thread).
+    clock: Mutex<Option<libc::clockid_t>>,
+    /// That thread's CPU time in milliseconds at its last sign of life.
     heartbeat: AtomicU64,
     busy: AtomicBool,
     key: Mutex<String>,
@@ -18,24 +22,38 @@ pub struct Slot {
 impl Slot {
     pub fn new() -> Arc<Slot> {
         Arc::new(Slot {
-            origin: Instant::now(),
+            clock: Mutex::new(None),
             heartbeat: AtomicU64::new(0),
             busy: AtomicBool::new(false),
             key: Mutex::new(String::new()),
         })
     }
 
+    /// A sign of life; on the thread running the cell.
     fn beat(&self) {
         self.heartbeat
-            .store(self.origin.elapsed().as_millis() as u64, Ordering::Relaxed);
+            .store(thread_cpu_time().as_millis() as u64, Ordering::Relaxed);
     }
 
-    /// How long since the last sign of life, if the worker is in a cell.
+    /// The calling thread runs the cell from now on.
+    fn attach(&self) {
+        let mut id: libc::clockid_t = 0;
+        // SAFETY: `id` is a valid, writable clockid_t; pthread_self() is
+        // the calling thread, alive for the call.
+        let rc = unsafe { libc::pthread_getcpuclockid(libc::pthread_self(), &mut id) };
+        *self.clock.lock().unwrap() = (rc == 0).then_some(id);
+        self.beat();
+    }
+
+    /// The CPU time the worker has used since its last sign of life, if it
+    /// is in a cell.
     fn silent_for(&self) -> Option<Duration> {
-        self.busy.load(Ordering::Relaxed).then(|| {
-            let now = self.origin.elapsed().as_millis() as u64;
-            Duration::from_millis(now.saturating_sub(self.heartbeat.load(Ordering::Relaxed)))
-        })
+        if !self.busy.load(Ordering::Relaxed) {
+            return None;
+        }
+        let now = cpu_time_of((*self.clock.lock().unwrap())?)?;
+        let last = Duration::from_millis(self.heartbeat.load(Ordering::Relaxed));
+        Some(now.saturating_sub(last))
     }
 }
 
@@ -56,7 +74,7 @@ impl Watch {
 
     /// A bound of `limit` of the calling thread's CPU time from now.
     pub fn with_limit(slot: Arc<Slot>, limit: Duration) -> Watch {
-        slot.beat();
+        slot.attach();
         Watch {
             deadline: thread_cpu_time() + limit,
             slot,
@@ -75,15 +93,21 @@ impl Watch {
 
 /// The CPU time the calling thread has used (CLOCK_THREAD_CPUTIME_ID).
 pub fn thread_cpu_time() -> Duration {
+    cpu_time_of(libc::CLOCK_THREAD_CPUTIME_ID)
+        .expect("clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed")
+}
+
+/// The time of CPU-time clock `clock`; `None` when it cannot be read (a
+/// thread that has ended).
+fn cpu_time_of(clock: libc::clockid_t) -> Option<Duration> {
     let mut ts = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
     };
-    // SAFETY: `ts` is a valid, writable timespec; the clock id is a
-    // constant every supported (POSIX) target provides.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
-    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
+    // SAFETY: `ts` is a valid, writable timespec; an invalid clock id is
+    // reported by the return code.
+    let rc = unsafe { libc::clock_gettime(clock, &mut ts) };
+    (rc == 0).then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
 }
 
 /// How a run ended.
@@ -544,7 +568,7 @@ pub(crate) fn agreement(coarse: &Run, fine: &Run, h: f64) -> Agreement {
 /// Runs `jobs` (an index into `entries` and a cell) on `threads` worker
 /// threads, results in job order. A watchdog thread ends the process (exit
 /// code 3), naming the cell, when a worker shows no sign of life for
-/// [`HANG_LIMIT`]: one FMI call that does not return. `progress` prints a
+/// [`HANG_LIMIT`] of its CPU time: one FMI call that does not return. `progress` prints a
 /// line every 5 % to stderr.
 pub fn run_jobs(
     entries: &[ModelEntry],
@@ -719,4 +743,46 @@ pub fn acceptance(r: &CellResult) -> Vec<String> {
         }
     }
     fails
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The watchdog measures a worker's silence in the worker's CPU time:
+    /// a worker that sleeps (a loaded machine, a stopped process) is not
+    /// silent, one that computes without a sign of life is. Read from
+    /// another thread, as the watchdog does.
+    #[test]
+    fn the_watchdog_counts_the_workers_cpu_time() {
+        let slot = Slot::new();
+        let (attached, slept, spun) = (
+            std::sync::Barrier::new(2),
+            std::sync::Barrier::new(2),
+            std::sync::Barrier::new(2),
+        );
+        std::thread::scope(|scope| {
+            scope.spawn(|| {
+                let _watch = Watch::new(slot.clone());
+                slot.busy.store(true, Ordering::Relaxed);
+                attached.wait();
+                std::thread::sleep(Duration::from_millis(300));
+                slept.wait();
+                let start = thread_cpu_time();
+                while thread_cpu_time() - start < Duration::from_millis(300) {
+                    std::hint::black_box(start);
+                }
+                spun.wait();
+                spun.wait();
+            });
+            attached.wait();
+            slept.wait();
+            let after_sleep = slot.silent_for().expect("busy");
+            assert!(after_sleep < Duration::from_millis(100), "{after_sleep:?}");
+            spun.wait();
+            let after_spin = slot.silent_for().expect("busy");
+            assert!(after_spin >= Duration::from_millis(250), "{after_spin:?}");
+            spun.wait();
+        });
+    }
 }
