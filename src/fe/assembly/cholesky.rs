@@ -298,7 +298,7 @@ impl Pattern {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::fe::assembly::FactorKind;
     use crate::fe::discretization::{Discretization, Ends};
@@ -307,7 +307,8 @@ mod tests {
     use crate::law::{FibreHistory, FibreRate, Params};
     use crate::specimen::{LENGTH as L0, MEAN_AREA};
 
-    fn mesh(n_axial: usize, n_radial: usize) -> Discretization {
+    /// The fusiform specimen's clamped mesh, meridian fibres.
+    pub(crate) fn mesh(n_axial: usize, n_radial: usize) -> Discretization {
         Discretization::fusiform(
             L0,
             MEAN_AREA,

@@ -260,23 +260,11 @@ fn negative_direction(lblt: &BunchKaufman) -> Option<Vec<f64>> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::cholesky::tests::mesh;
     use super::*;
     use crate::fe::assembly::{Attempts, FactorKind};
-    use crate::fe::discretization::{Discretization, Ends};
-    use crate::fe::mesh::{FibreLayout, Resolution};
+    use crate::fe::discretization::Discretization;
     use crate::law::{FibreHistory, FibreRate, Params};
-    use crate::specimen::{LENGTH as L0, MEAN_AREA};
-
-    fn mesh(n_axial: usize, n_radial: usize) -> Discretization {
-        Discretization::fusiform(
-            L0,
-            MEAN_AREA,
-            Resolution { n_axial, n_radial },
-            FibreLayout::Meridian,
-            Ends::Clamped,
-        )
-        .unwrap()
-    }
 
     /// The tangent at the reference, activation level `level`.
     fn tangent(d: &Discretization, p: &Params, level: f64, rate: FibreRate) -> Vec<f64> {
