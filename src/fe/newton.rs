@@ -100,6 +100,20 @@
 //! linearised start. Only when no trial decreases the residual either does
 //! the attempt fail. The equilibrium is the same to the tolerance.
 //!
+//! # Rounding floor
+//!
+//! With a very small compressibility (D = 1e-12 1/Pa: volumetric
+//! stiffness 2/D) the residual of an iterate rounds at ~1e-7 N, the
+//! stiffness times the positions' rounding, above the force tolerance of
+//! a small specimen. Near the solution the residual is then noise: no
+//! trial of a fresh tangent's line search decreases it, and θ measured on
+//! noise says nothing. Where that happens and Newton's correction from the
+//! tangent formed there (the error to first order) is within the
+//! tolerance, the force part allowed the reaction's rounding level
+//! ε ℓ Σ|K̃ δ| where that is larger, the iterate is the solution
+//! (`Discretization::within_rounding`). Elsewhere the search's failure is
+//! an error, as before; nothing else changes.
+//!
 //! [`CONTRACTION_STEPS`]: crate::fe::tangent::CONTRACTION_STEPS
 
 use std::sync::Arc;
@@ -631,6 +645,16 @@ impl Discretization {
                         alpha = a;
                         break Some((trial, e, next, th));
                     }
+                    // No trial decreases the residual along a correction
+                    // from a tangent formed here that is itself within the
+                    // tolerance: the residual is at the rounding level of its
+                    // evaluation (with D = 1e-12 the volumetric forces round
+                    // at ~1e-7 N), and Newton's correction, the error to first
+                    // order, says the iterate is converged (module docs,
+                    // "Rounding floor").
+                    if self.within_rounding(p, &ev, &dx, t, input.tolerance) {
+                        return Ok(spent.solved(x, ev, cache, contraction));
+                    }
                     return Err(format!(
                         "Newton: no decrease along the Newton direction (correction {norm:e} m, residual {r2:e} N)"
                     ));
@@ -735,6 +759,30 @@ impl Discretization {
             .abs()
             .max(p.sigma0 * self.mean_area());
         factor * df.abs() <= tolerance * scale && factor * max_abs(dx) <= tolerance * self.size()
+    }
+
+    /// Whether Newton's correction Δx from a tangent formed at `ev`, along
+    /// which no trial decreases the residual, is within the tolerance: no
+    /// node moved by more than tol · ℓ, the reaction force by no more than
+    /// tol · max(|F|, σ0 A) or, where that is finer, its rounding level
+    /// ε ℓ Σ|K̃ δ| (its change when every position moves by ε ℓ, the
+    /// representation error of positions within ℓ; with D = 1e-12 some
+    /// 1e-8 of σ0 A). Module docs, "Rounding floor".
+    fn within_rounding(
+        &self,
+        p: &Params,
+        ev: &Evaluation,
+        dx: &[f64],
+        t: &Tangent,
+        tolerance: f64,
+    ) -> bool {
+        let floor = f64::EPSILON * self.size() * t.d_force.iter().map(|k| k.abs()).sum::<f64>();
+        let df: f64 = t.d_force.iter().zip(dx).map(|(k, d)| k * d).sum();
+        let scale = self
+            .reaction(&ev.forces)
+            .abs()
+            .max(p.sigma0 * self.mean_area());
+        df.abs() <= (tolerance * scale).max(floor) && max_abs(dx) <= tolerance * self.size()
     }
 
     /// The linearised response of the last equilibrium x_n as a start, with

@@ -383,6 +383,10 @@ where
     // and good points with the root on the side of a failed end.
     let mut approaches = 0u32;
     let mut last_move = 0.0f64;
+    // Newton steps that fall short: the residual before the last move when
+    // that was a Newton step, and the factor the next Newton step takes.
+    let mut newton_from: Option<f64> = None;
+    let mut boost = 1.0f64;
     // 200: bisection of the evaluable range to 1 ulp takes ~60.
     for _ in 0..200 {
         let pt = match eval(x) {
@@ -485,7 +489,17 @@ where
                 return Err(e);
             }
         }
-        let newton = x - step;
+        // A Newton step that left more than half of the residual, its sign
+        // unchanged, came from a slope far too large (a stale one: the FE
+        // unit's secant is not formed below its force resolution, and a
+        // slope 100 times too large would take hundreds of trials): each
+        // such step in a row doubles the next. Overshooting brackets the
+        // root, and the bracket bounds every later step.
+        boost = match newton_from {
+            Some(r0) if r0.signum() == pt.r.signum() && pt.r.abs() > 0.5 * r0.abs() => 2.0 * boost,
+            _ => 1.0,
+        };
+        let newton = x - boost * step;
         let bracketed = lo_known && hi_known;
         if bracketed && top - bottom <= 4.0 * f64::EPSILON * top {
             // The bracket ends at a failed length within rounding of the
@@ -502,11 +516,12 @@ where
                 None => accept(pt, evaluations, tendon),
             };
         }
-        let next = if newton_ok
+        let newton_taken = newton_ok
             && newton > bottom
             && newton < top
-            && (!bracketed || (2.0 * step).abs() <= dx_old.abs())
-        {
+            && (!bracketed || (2.0 * boost * step).abs() <= dx_old.abs());
+        newton_from = newton_taken.then_some(pt.r);
+        let next = if newton_taken {
             newton
         } else if bracketed {
             0.5 * (bottom + top)

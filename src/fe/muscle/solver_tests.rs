@@ -295,6 +295,57 @@ fn isometric_initialization_at_extreme_lengths_is_an_equilibrium() {
     }
 }
 
+/// With D = 1e-12 the volumetric forces round at ~1e-7 N, above the
+/// force tolerance of a small specimen (1e-10 σ0 A, 3e-8 N at the
+/// musculotendon scene's area 8.919e-4 m² on L0 = 0.05 m): relaxed at 0.3
+/// and 1.2 L0, the isometric initialization of that squat specimen ends
+/// where no trial of a fresh tangent decreases the residual. Accepted at
+/// that rounding floor ([`crate::fe::newton`], "Rounding floor"; refused
+/// before, as "no isometric equilibrium"), it is an equilibrium to the
+/// bound of the extreme lengths above.
+#[test]
+fn isometric_initialization_with_d_1e_12_ends_at_the_rounding_floor() {
+    let p = Params {
+        d_comp: 1e-12,
+        ..Params::default()
+    };
+    let d = Arc::new(
+        Discretization::fusiform_graded(
+            0.05,
+            8.919e-4,
+            Resolution {
+                n_axial: 6,
+                n_radial: 1,
+            },
+            crate::fe::mesh::LUMPED_GRADING,
+            FibreLayout::Axial,
+            Ends::Clamped,
+        )
+        .unwrap(),
+    );
+    for stretch in [0.3, 1.2] {
+        let (m, s) = Muscle::isometric(d.clone(), &p, 0.05 * stretch, 0.0).unwrap();
+        let r = Advance {
+            muscle: m.clone(),
+            solution: s,
+            start: m.history.clone(),
+            rate: FibreRate::Isometric,
+            activation: 0.0,
+            iterations: 0,
+            factorizations: 0,
+            residuals: 0,
+            substeps: 1,
+            pieces: vec![],
+        };
+        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        let tol = 10.0 * RESIDUAL_TOLERANCE;
+        assert!(
+            dx < tol && df < tol,
+            "{stretch} L0: |dx|/L0 {dx:e}, dF {df:e}"
+        );
+    }
+}
+
 /// An activation jump 0 → 1 within one 10 ms step (no activation
 /// dynamics: the level is 1 over the whole step) at rest length, which
 /// drives the contractile elements to their maximum shortening speed
