@@ -16,7 +16,9 @@
 //! Part 2: [`Muscle::isometric`] (the FMU's initialization) on the default
 //! mesh at rest length with levels 0.5 and 1 and at 1.1 L0 with 0.5: wall
 //! time (median and range of `--runs`, default 3), its counted work (linear
-//! solves, residual evaluations, factorisations: deterministic), the force,
+//! solves, residual evaluations, factorisations: deterministic; every
+//! attempt, the discretization's ledger, with the converged attempts'
+//! share in parentheses), the force,
 //! and which factorisation the equilibrium's tangent gets. With
 //! `HM_DUMP=DIR` each case writes its force and positions (one value a
 //! line, full digits) to `DIR/x_<L/L0>_<level>.txt`, to compare two builds'
@@ -104,8 +106,9 @@ fn main() {
         let mut times = Vec::new();
         let mut force = 0.0;
         let mut kind = None;
-        let mut work = (0, 0, 0);
+        let mut work = ((0, 0), (0, 0), (0, 0));
         for _ in 0..runs {
+            let before = d.work.work();
             let t = Instant::now();
             let (m, s) = Muscle::isometric(d.clone(), &p, stretch * L0, level).unwrap();
             times.push(t.elapsed().as_secs_f64());
@@ -115,7 +118,12 @@ fn main() {
                 let file = format!("{dir}/x_{stretch}_{level}.txt");
                 std::fs::write(file, format!("{force:e}\n{}", text.join("\n"))).unwrap();
             }
-            work = (s.iterations, s.residuals, s.factorizations);
+            let all = d.work.work() - before;
+            work = (
+                (all.solves, s.iterations),
+                (all.residuals, s.residuals),
+                (all.factorizations, s.factorizations),
+            );
             let tangent = m.tangent.as_ref().map(|c| c.tangent(&d, &p));
             kind = tangent.map(|t| t.map(|t| t.factor.kind()));
         }
@@ -123,11 +131,14 @@ fn main() {
             .iter()
             .fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
         println!(
-            "| {stretch} | {level} | {:.3} | {lo:.3}–{hi:.3} | {} | {} | {} | {force:.9} | {kind:?} |",
+            "| {stretch} | {level} | {:.3} | {lo:.3}–{hi:.3} | {} ({}) | {} ({}) | {} ({}) | {force:.9} | {kind:?} |",
             median(times),
-            work.0,
-            work.1,
-            work.2
+            work.0 .0,
+            work.0 .1,
+            work.1 .0,
+            work.1 .1,
+            work.2 .0,
+            work.2 .1
         );
     }
 }

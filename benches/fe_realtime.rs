@@ -29,7 +29,10 @@
 //! A last table counts the work of the stepping workloads in-process (the
 //! FMU's step map on the same mesh, activation dynamics on, no substep
 //! control, as the FMU's defaults): linear solves, residual evaluations,
-//! tangent factorisations and substeps per step. The counts are
+//! tangent factorisations and substeps per step, every attempt counted
+//! (the discretization's ledger, [`hill_muscle::fe::work`]: failed attempts
+//! before a continuation or substeps included), with the converged
+//! attempts' share, what a step reports, beside it. The counts are
 //! deterministic; they say what the times are made of. It also runs the two
 //! other work-precision scenes (docs/work-precision.md) at h = 1, 10, 100 ms:
 //! `activated` (command 1 from t = 0, held at L0 for 0.5 s, then pulled at
@@ -162,9 +165,11 @@ fn init(api: &cabi::Api) -> f64 {
 type StepWork = (f64, usize, usize);
 
 /// Per step of one in-process run: linear solves, residual evaluations,
-/// factorisations, substeps (means), the force at the end, and each step's
+/// factorisations (every attempt, the discretization's ledger), substeps,
+/// and the solves and factorisations of the attempts that converged (what
+/// the step reports) (means), the force at the end, and each step's
 /// [`StepWork`].
-fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64, Vec<StepWork>) {
+fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 6], f64, Vec<StepWork>) {
     let p = Params::default();
     let d = discretization(
         None,
@@ -177,24 +182,25 @@ fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64, Vec<StepWork
     .expect("the default mesh");
     let (mut m, _) = Muscle::isometric(d, &p, L0, 0.0).expect("rest");
     let steps = (duration / h).round() as usize;
-    let (mut sum, mut a0, mut force) = ([0usize; 4], 0.0, f64::NAN);
+    let (mut sum, mut a0, mut force) = ([0usize; 6], 0.0, f64::NAN);
     let mut times = Vec::with_capacity(steps);
     for i in 0..steps {
         let (u, l) = inputs(i as f64 * h, (i + 1) as f64 * h);
         let level = StepLevel::new(true, p.s, a0, u, 0.0, h, (-p.s * h).exp());
+        let before = m.disc.work.work();
         let t = Instant::now();
         let adv = m
             .advance(&p, l, h, &|tau| level.at(tau))
             .expect("the workload's step");
-        times.push((
-            t.elapsed().as_secs_f64(),
-            adv.iterations,
-            adv.factorizations,
-        ));
-        sum[0] += adv.iterations;
-        sum[1] += adv.residuals;
-        sum[2] += adv.factorizations;
+        let elapsed = t.elapsed().as_secs_f64();
+        let all = adv.muscle.disc.work.work() - before;
+        times.push((elapsed, all.solves, all.factorizations));
+        sum[0] += all.solves;
+        sum[1] += all.residuals;
+        sum[2] += all.factorizations;
         sum[3] += adv.substeps;
+        sum[4] += adv.iterations;
+        sum[5] += adv.factorizations;
         force = adv.muscle.disc.reaction(&adv.solution.evaluation.forces);
         a0 = level.end;
         m = adv.muscle;
@@ -206,7 +212,7 @@ fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 4], f64, Vec<StepWork
 /// work per step and its wall time.
 fn in_process(only: Option<&str>) {
     let wanted = |name: &str| only.map_or(true, |o| o == name);
-    println!("Work per step in-process (the FMU's step map, its defaults)");
+    println!("Work per step in-process (the FMU's step map, its defaults; every attempt counted, and in parentheses the attempts that converged, as the step reports them)");
     println!("| workload | h (ms) | solves/step | residuals/step | factorisations/step | substeps/step | mean ms/step | median ms/step | wall s per simulated s | force at the end (N) |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut kinds = Vec::new();
@@ -215,12 +221,15 @@ fn in_process(only: Option<&str>) {
             continue;
         }
         for h in [1e-3, 1e-2, 1e-1] {
-            let ([solves, residuals, factorizations, substeps], force, steps) =
-                counts(inputs, h, duration);
+            let (
+                [solves, residuals, factorizations, substeps, solves_ok, factorizations_ok],
+                force,
+                steps,
+            ) = counts(inputs, h, duration);
             let times: Vec<f64> = steps.iter().map(|s| s.0).collect();
             let [mean, med, ..] = stats(&times, &[0]);
             println!(
-                "| {name} | {} | {solves:.3} | {residuals:.3} | {factorizations:.3} | {substeps:.3} | {:.3} | {:.3} | {:.3} | {force:.14} |",
+                "| {name} | {} | {solves:.3} ({solves_ok:.3}) | {residuals:.3} | {factorizations:.3} ({factorizations_ok:.3}) | {substeps:.3} | {:.3} | {:.3} | {:.3} | {force:.14} |",
                 h * 1e3,
                 mean * 1e3,
                 med * 1e3,
@@ -282,10 +291,12 @@ fn arm_in_process() {
     println!("| solves/step | residuals/step | factorisations/step | substeps/step | steps in substeps | mean ms/step (step + derivative) | median ms/step | derivative mean ms | force at the end (N) | d force / d length at the end (N/m) |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     println!(
-        "| {:.3} | {:.3} | {:.3} | {:.3} | {} | {:.3} | {:.3} | {:.3} | {force:.14} | {stiffness:.10} |",
+        "| {:.3} ({:.3}) | {:.3} | {:.3} ({:.3}) | {:.3} | {} | {:.3} | {:.3} | {:.3} | {force:.14} | {stiffness:.10} |",
         mean(&|w| w.solves as f64),
+        mean(&|w| w.converged.0 as f64),
         mean(&|w| w.residuals as f64),
         mean(&|w| w.factorizations as f64),
+        mean(&|w| w.converged.1 as f64),
         mean(&|w| w.substeps as f64),
         work.iter().filter(|w| w.substeps > 1).count(),
         step_mean * 1e3,

@@ -43,6 +43,7 @@ use std::time::Instant;
 
 use hill_muscle::fe::mesh::FibreLayout;
 use hill_muscle::fe::step_map::{discretization, Committed, StepLevel};
+use hill_muscle::fe::work::Work as WorkCount;
 use hill_muscle::fmi2::model_description::guid;
 use hill_muscle::fmi2::Model;
 use hill_muscle::fmus::hillfe::{HillFE, DEFAULT_GRADING, DEFAULT_MESH};
@@ -112,7 +113,8 @@ fn unit_parameters() -> Vec<(&'static str, f64)> {
 }
 
 /// FE work per step, averaged over a run: Newton solves (linear solves),
-/// tangents factorised, residuals evaluated.
+/// tangents factorised, residuals evaluated, every attempt counted (the
+/// discretization's ledger, [`hill_muscle::fe::work`]).
 #[derive(Clone, Copy, Default)]
 struct Work {
     solves: f64,
@@ -182,8 +184,10 @@ impl Shadow {
         }
     }
 
-    /// The step to length `l` under command `u`: its force and work.
-    fn step(&mut self, u: f64, l: f64, h: f64) -> (f64, (usize, usize, usize)) {
+    /// The step to length `l` under command `u`: its force, its linear
+    /// solves as the step reports them (the FMU's `newton_iterations`), and
+    /// its work, every attempt counted (the discretization's ledger).
+    fn step(&mut self, u: f64, l: f64, h: f64) -> (f64, usize, WorkCount) {
         let p = &self.params;
         let decay = Decay::for_step(self.decay, p.s, h);
         let level = StepLevel::new(
@@ -195,14 +199,16 @@ impl Shadow {
             h,
             decay.value,
         );
+        let before = self.state.muscle.disc.work.work();
         let st = self
             .state
             .step(p, MEAN_AREA, level, l, None)
             .expect("the workload's step");
+        let all = st.state.muscle.disc.work.work() - before;
         self.decay = Some(decay);
         self.state = st.state;
         let force = st.outputs[hill_muscle::fe::step_map::Quantity::Force as usize];
-        (force, (st.iterations, st.factorizations, st.residuals))
+        (force, st.iterations, all)
     }
 }
 
@@ -230,10 +236,10 @@ fn drive(inputs: Inputs, h: f64, duration: f64) -> Drive {
         m.do_step(i as f64 * h, h).expect("the workload's step");
         time += t.elapsed().as_secs_f64();
         f = m.get_real(force);
-        let (fs, (s, k, r)) = shadow.step(u, l, h);
+        let (fs, reported, all) = shadow.step(u, l, h);
         assert_eq!(fs, f, "the shadow step map is HillMuscleFE's");
-        assert_eq!(s as i32, m.get_integer(solves));
-        work.add(s, k, r);
+        assert_eq!(reported as i32, m.get_integer(solves));
+        work.add(all.solves, all.factorizations, all.residuals);
         let lt = if f > 0.0 {
             tendon.slack_length * (1.0 + tendon.strain_at(f))
         } else {
@@ -272,12 +278,22 @@ fn unit_counts(d: &Drive, h: f64) -> (Work, f64, [usize; 4], f64, f64, f64) {
     for (i, &(u, l, path)) in d.steps.iter().enumerate() {
         m.set_real(activation, u).unwrap();
         m.set_real(length, path).unwrap();
+        let ledger = |m: &MusculotendonFe| {
+            m.unit()
+                .expect("the unit is initialized")
+                .muscle
+                .muscle
+                .disc
+                .work
+                .work()
+        };
+        let before = ledger(&m);
         let t = Instant::now();
         m.do_step(i as f64 * h, h).expect("the unit's step");
         time += t.elapsed().as_secs_f64();
-        let (s, t) = m.last_step_work();
-        let unit = m.unit().expect("the unit has stepped");
-        work.add(s, unit.factorizations, unit.residuals);
+        let (_, t) = m.last_step_work();
+        let all = ledger(&m) - before;
+        work.add(all.solves, all.factorizations, all.residuals);
         trials += u64::from(t);
         by[(t as usize).clamp(1, 4) - 1] += 1;
         dev = dev.max((m.get_real(fibre) - l).abs());

@@ -161,8 +161,10 @@ pub fn cabi(api: &Api, trace: &Trace) -> Replayed {
 }
 
 /// One step of the in-process replay: wall time of the step and of its
-/// derivative [s], the step's linear solves, residual evaluations,
-/// factorisations and substeps.
+/// derivative [s], the step's linear solves, residual evaluations and
+/// factorisations (every attempt: the discretization's ledger), its
+/// substeps, and the solves and factorisations of the attempts that
+/// converged (what the step reports).
 #[derive(Clone, Copy, Debug)]
 pub struct Work {
     pub step: f64,
@@ -171,6 +173,7 @@ pub struct Work {
     pub residuals: usize,
     pub factorizations: usize,
     pub substeps: usize,
+    pub converged: (usize, usize),
 }
 
 /// The FMU's step map on the trace in-process (its defaults: activation
@@ -208,11 +211,13 @@ pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64, Attempts) {
         let level = StepLevel::new(true, p.s, a, r.activation, 0.0, trace.h, decay);
         let end = end_length(r.length, r.der_length, trace.h, &p, l0).expect("an end length");
         // Committed::step without substep control, its counts kept.
+        let before = state.muscle.disc.work.work();
         let t0 = Instant::now();
         let adv = state
             .muscle
             .advance(&p, end, trace.h, &|tau| level.at(tau))
             .expect("the arm's step");
+        let all = adv.muscle.disc.work.work() - before;
         let substepped = (adv.substeps > 1).then(|| Substepped {
             before: state.muscle.clone(),
             level,
@@ -236,10 +241,11 @@ pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64, Attempts) {
         work.push(Work {
             step,
             derivative,
-            solves: adv.iterations,
-            residuals: adv.residuals,
-            factorizations: adv.factorizations,
+            solves: all.solves,
+            residuals: all.residuals,
+            factorizations: all.factorizations,
             substeps: adv.substeps,
+            converged: (adv.iterations, adv.factorizations),
         });
         a = level.end;
         state = next;

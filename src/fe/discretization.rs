@@ -41,6 +41,7 @@ use crate::fe::mesh::{revolve_graded, FibreLayout, Fusiform, Grading, Mesh, Reso
 use crate::fe::threads::{
     in_order, Threads, RESIDUAL_ELEMENTS_PER_THREAD, TANGENT_ELEMENTS_PER_THREAD,
 };
+use crate::fe::work::Ledger;
 use crate::law::hill_fibre::FibreStress;
 use crate::law::stress::IsochoricStress;
 use crate::law::volumetric::volumetric_derivatives;
@@ -127,6 +128,8 @@ pub struct Discretization {
     pub volumetric: Volumetric,
     /// How many threads the element loops may use ([`Self::set_threads`]).
     threads: AtomicUsize,
+    /// The equilibrium solves' work, failed attempts included.
+    pub work: Ledger,
 }
 
 impl Discretization {
@@ -266,6 +269,7 @@ impl Discretization {
             fibres: FibreLayout::Axial,
             volumetric: Volumetric::NodalAverage,
             threads: AtomicUsize::new(1),
+            work: Ledger::default(),
             mesh,
         })
     }

@@ -9,7 +9,8 @@
 //! and [`step_map`] (one communication step, its outputs and their
 //! derivatives); [`memory`] estimates a mesh's peak memory before anything
 //! is built; [`threads`] splits the element loops over opt-in scoped
-//! threads. Nothing here knows of FMI.
+//! threads; [`work`] counts the solves' work, failed attempts included.
+//! Nothing here knows of FMI.
 
 pub mod assembly;
 pub mod discretization;
@@ -22,3 +23,4 @@ pub mod newton;
 pub mod step_map;
 pub mod tangent;
 pub mod threads;
+pub mod work;

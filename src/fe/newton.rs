@@ -502,7 +502,7 @@ impl Discretization {
             }
         };
         let mut ev = self.evaluate(p, &x, activation, start, rate, false)?;
-        spent.residuals += 1;
+        spent.residual(self);
         // The start histories with the SEE stretch of the latest evaluation:
         // the CE–SEE solves' warm start (λs of the history enters only as
         // that; the law reads λm(t)), nearly exact between iterates.
@@ -519,7 +519,7 @@ impl Discretization {
         let mut t = spent.tangent(&cache, self, p, input.budget)?;
         let mut dx = self.free_negated(&ev.forces);
         t.factor.solve_in_place(&mut dx);
-        spent.solve(input.budget)?;
+        spent.solve(self, input.budget)?;
         // The contraction measured in this step, whether the tangent was
         // formed at the current iterate, how often it has been reused.
         let mut theta: Option<f64> = None;
@@ -580,7 +580,7 @@ impl Discretization {
                 let previous = norm2(&dx);
                 dx = self.free_negated(&ev.forces);
                 t.factor.solve_in_place(&mut dx);
-                spent.solve(input.budget)?;
+                spent.solve(self, input.budget)?;
                 // Across a tangent change the contraction is the ratio of
                 // the new correction to the last one.
                 theta = theta.map(|_| norm2(&dx) / previous);
@@ -606,7 +606,7 @@ impl Discretization {
             let accepted = loop {
                 let trial: Vec<f64> = x.iter().zip(&dx).map(|(a, d)| a + alpha * d).collect();
                 let evaluated = self.evaluate(p, &trial, activation, &warm, rate, false);
-                spent.residuals += 1;
+                spent.residual(self);
                 if let Ok(e) = evaluated {
                     warm_from(&mut warm, &e);
                     if let Some(th) = stand_in.filter(|_| alpha == 1.0) {
@@ -622,7 +622,7 @@ impl Discretization {
                     if merit == Merit::Natural || armijo {
                         let mut next = self.free_negated(&e.forces);
                         t.factor.solve_in_place(&mut next);
-                        spent.solve(input.budget)?;
+                        spent.solve(self, input.budget)?;
                         let th = norm2(&next) / norm;
                         if merit == Merit::Residual || th <= 1.0 - 0.25 * alpha {
                             break Some((trial, e, next, th));
@@ -812,10 +812,10 @@ impl Discretization {
         }));
         let t = spent.tangent(&cache, self, p, input.budget)?;
         let r = self.evaluate(p, input.x, activation, start, rate, false)?;
-        spent.residuals += 1;
+        spent.residual(self);
         let mut dx = self.free_negated(&r.forces);
         t.factor.solve_in_place(&mut dx);
-        spent.solve(input.budget)?;
+        spent.solve(self, input.budget)?;
         let dl = input.length - input.length_start;
         let mut x = input.x.to_vec();
         for ((xi, d), v) in x.iter_mut().zip(&dx).zip(&t.d_length) {
@@ -937,6 +937,7 @@ impl Counts {
         if !cache.is_built() {
             Budget::charge(&budget.factorizations, "factorisations")?;
             self.factorizations += 1;
+            disc.work.factorization();
         }
         cache.tangent(disc, p)
     }
@@ -963,11 +964,18 @@ impl Counts {
         }
     }
 
-    /// Count (and charge to `budget`) a linear solve.
-    fn solve(&mut self, budget: &Budget) -> Result<(), String> {
+    /// Count (and charge to `budget`) a linear solve with `disc`.
+    fn solve(&mut self, disc: &Discretization, budget: &Budget) -> Result<(), String> {
         Budget::charge(&budget.solves, "solves")?;
         self.solves += 1;
+        disc.work.solve();
         Ok(())
+    }
+
+    /// Count a residual evaluation of `disc`.
+    fn residual(&mut self, disc: &Discretization) {
+        self.residuals += 1;
+        disc.work.residual();
     }
 }
 
