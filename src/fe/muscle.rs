@@ -389,8 +389,20 @@ impl Muscle {
         activation: &dyn Fn(f64) -> f64,
         n: usize,
     ) -> Result<Advance, String> {
+        self.advance_within(p, length, h, activation, n, Budget::for_step(&self.disc))
+    }
+
+    /// [`Self::advance_in`] within `budget`.
+    pub fn advance_within(
+        &self,
+        p: &Params,
+        length: f64,
+        h: f64,
+        activation: &dyn Fn(f64) -> f64,
+        n: usize,
+        budget: Budget,
+    ) -> Result<Advance, String> {
         let disc = &self.disc;
-        let budget = Budget::for_step(disc);
         let mut last_error = String::new();
         let hs = h / n as f64;
         let mut x = self.x.clone();

@@ -15,7 +15,11 @@
 //! ([`Guess::trial`]: second order in the step), its slope dF_M/dL_M the last step's secant
 //! (Newton's slope only: the partials use the consistent tangent); each
 //! later trial of a step taken in one piece starts its Newton iteration
-//! from the previous trial's solution moved by ∂x/∂L·ΔL ([`warm_step`]).
+//! from the previous trial's solution moved by ∂x/∂L·ΔL ([`warm_step`]),
+//! with the tangent it holds: where that iteration would form a tangent
+//! (its reused one stale in the soft modes a small correction measures)
+//! the trial steps cold instead, which mostly needs none — unless this
+//! step's cold trial already had to form one.
 //! The partial derivatives are the equilibrium's implicit ones with the FE
 //! step map's consistent dF_M/dL_M and dF_M/du
 //! ([`Committed::force_derivatives`], formed on first request).
@@ -30,7 +34,7 @@ use std::sync::Arc;
 
 use crate::fe::discretization::Discretization;
 use crate::fe::muscle::Muscle;
-use crate::fe::newton::RESIDUAL_TOLERANCE;
+use crate::fe::newton::{Budget, RESIDUAL_TOLERANCE};
 use crate::fe::step_map::{
     check_stretch, Committed, LastStep, Outputs, Quantity, StepFailure, StepLevel, Stepped,
 };
@@ -190,12 +194,14 @@ fn unsolvable(e: EquilibriumError<StepFailure>, path: f64) -> StepFailure {
 /// The step of `from` to end length `length` started from `warm`, a
 /// solution of the same step (same start, level and rate) at another end
 /// length, instead of from the committed state's predictor: the FE step in
-/// one piece of one substep ([`Muscle::advance_in`]) with the muscle's
+/// one piece of one substep ([`Muscle::advance_within`]) with the muscle's
 /// predictor record replaced by one increment that makes its prediction
 /// warm's positions plus ∂x/∂L·(length − warm's length)
 /// ([`crate::fe::newton`], "Predictor"), then the committed record pushed
-/// with this step's real increment, as a cold step leaves it. `None` where
-/// that does not apply or does not converge (the caller steps cold).
+/// with this step's real increment, as a cold step leaves it, all within
+/// `budget` ([`Budget::without_factorizations`]: warm's tangent only).
+/// `None` where that does not apply or does not converge (the caller
+/// steps cold).
 fn warm_step(
     from: &Committed,
     warm: &Committed,
@@ -203,6 +209,7 @@ fn warm_step(
     area: f64,
     level: &StepLevel,
     length: f64,
+    budget: Budget,
 ) -> Option<Stepped> {
     let (m0, h) = (&from.muscle, level.h);
     if warm.substepped.is_some() || warm.last.h != Some(h) {
@@ -229,7 +236,7 @@ fn warm_step(
         tolerance: m0.tolerance,
     };
     let adv = start
-        .advance_in(p, length, h, &|tau| level.at(tau), 1)
+        .advance_within(p, length, h, &|tau| level.at(tau), 1, budget)
         .ok()?;
     let s = &adv.solution;
     let increment = Increment {
@@ -272,6 +279,7 @@ struct Trials {
     factorizations: usize,
     residuals: usize,
     trials: u32,
+    cold_factorised: bool,
 }
 
 impl Trials {
@@ -284,6 +292,7 @@ impl Trials {
             factorizations: 0,
             residuals: 0,
             trials: 0,
+            cold_factorised: false,
         }
     }
 
@@ -392,16 +401,28 @@ impl MusculotendonFE {
                 check_stretch(s.params, s.l0, l)
                     .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
                 // Warm starts skip the error control: only without it.
+                let disc = &self.muscle.muscle.disc;
+                let budget = if t.cold_factorised {
+                    Budget::for_step(disc)
+                } else {
+                    Budget::without_factorizations(disc)
+                };
                 let warm = t
                     .kept
                     .as_ref()
                     .filter(|_| substep_tolerance.is_none())
-                    .and_then(|w| warm_step(&self.muscle, &w.state, s.params, s.area, &level, l));
+                    .and_then(|w| {
+                        warm_step(&self.muscle, &w.state, s.params, s.area, &level, l, budget)
+                    });
                 let st = match warm {
                     Some(st) => st,
-                    None => self
-                        .muscle
-                        .step(s.params, s.area, level, l, substep_tolerance)?,
+                    None => {
+                        let st = self
+                            .muscle
+                            .step(s.params, s.area, level, l, substep_tolerance)?;
+                        t.cold_factorised = st.factorizations > 0;
+                        st
+                    }
                 };
                 Ok(t.record(l, st, s.unit.tendon.f0))
             },

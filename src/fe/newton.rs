@@ -234,6 +234,14 @@ impl Budget {
         }
     }
 
+    /// [`Self::for_step`] with no factorisation: a solve that only reuses
+    /// the tangent it is given.
+    pub fn without_factorizations(disc: &Discretization) -> Budget {
+        let b = Budget::for_step(disc);
+        b.factorizations.set(0);
+        b
+    }
+
     fn charge(cell: &std::cell::Cell<usize>, what: &str) -> Result<(), String> {
         match cell.get() {
             0 => Err(format!("the step's work limit is spent ({what})")),
