@@ -51,6 +51,25 @@ fn distance_to_equilibrium(d: &Discretization, p: &Params, r: &Advance) -> (f64,
     (max_abs(&dx) / d.l0, df.abs() / scale)
 }
 
+/// [`distance_to_equilibrium`] of the isometric initialization of `d` at
+/// `length` and activation level `level`.
+fn isometric_distance(d: &Arc<Discretization>, p: &Params, length: f64, level: f64) -> (f64, f64) {
+    let (m, s) = Muscle::isometric(d.clone(), p, length, level).unwrap();
+    let r = Advance {
+        muscle: m.clone(),
+        solution: s,
+        start: m.history.clone(),
+        rate: FibreRate::Isometric,
+        activation: level,
+        iterations: 0,
+        factorizations: 0,
+        residuals: 0,
+        substeps: 1,
+        pieces: vec![],
+    };
+    distance_to_equilibrium(d, p, &r)
+}
+
 /// Convergence at the predictor ([`crate::fe::newton`] docs): on a smooth passive pull
 /// more than a third of the steps are accepted after one linear solve
 /// (without the stand-in a step takes one only when its first correction
@@ -274,20 +293,7 @@ fn isometric_initialization_at_extreme_lengths_is_an_equilibrium() {
     let p = Params::default();
     let d = specimen(8, 2);
     for stretch in [0.7, 1.3] {
-        let (m, s) = Muscle::isometric(d.clone(), &p, 0.05 * stretch, 1.0).unwrap();
-        let r = Advance {
-            muscle: m.clone(),
-            solution: s,
-            start: m.history.clone(),
-            rate: FibreRate::Isometric,
-            activation: 1.0,
-            iterations: 0,
-            factorizations: 0,
-            residuals: 0,
-            substeps: 1,
-            pieces: vec![],
-        };
-        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        let (dx, df) = isometric_distance(&d, &p, 0.05 * stretch, 1.0);
         let tol = 10.0 * RESIDUAL_TOLERANCE;
         assert!(
             dx < tol && df < tol,
@@ -325,20 +331,7 @@ fn isometric_initialization_with_d_1e_12_ends_at_the_rounding_floor() {
         .unwrap(),
     );
     for stretch in [0.3, 1.2] {
-        let (m, s) = Muscle::isometric(d.clone(), &p, 0.05 * stretch, 0.0).unwrap();
-        let r = Advance {
-            muscle: m.clone(),
-            solution: s,
-            start: m.history.clone(),
-            rate: FibreRate::Isometric,
-            activation: 0.0,
-            iterations: 0,
-            factorizations: 0,
-            residuals: 0,
-            substeps: 1,
-            pieces: vec![],
-        };
-        let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+        let (dx, df) = isometric_distance(&d, &p, 0.05 * stretch, 0.0);
         let tol = 10.0 * RESIDUAL_TOLERANCE;
         assert!(
             dx < tol && df < tol,

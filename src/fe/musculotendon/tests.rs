@@ -353,6 +353,48 @@ fn the_largest_angle_is_refused() {
     assert!(e.to_string().contains("largest"), "{e}");
 }
 
+/// The unit from `mt` over `n` steps of a 1 ms pull at 5 mm/s under
+/// command `a`, and the plain FE step on the fibre lengths it settles on:
+/// the FE solves, trials and factorisations of each (the plain step's
+/// trials 0).
+fn pull_against_plain(
+    s: &Setup,
+    mt: &MusculotendonFE,
+    n: usize,
+    a: f64,
+) -> ([usize; 3], [usize; 3]) {
+    let (path0, mut unit, mut fibre) = (mt.path, [0; 3], vec![]);
+    run(
+        s,
+        mt.clone(),
+        n,
+        a,
+        |k| path0 + 5e-3 * H * k as f64,
+        |m| {
+            unit[0] += m.iterations;
+            unit[1] += m.trials as usize;
+            unit[2] += m.factorizations;
+            fibre.push(m.output(UnitOutput::FibreLength));
+        },
+    );
+    let (mut state, mut plain) = (mt.muscle.clone(), [0; 3]);
+    for &l in &fibre {
+        let st = state
+            .step(
+                s.params,
+                AREA,
+                level(s.params, state.last.activation, a),
+                l,
+                None,
+            )
+            .unwrap();
+        plain[0] += st.iterations;
+        plain[2] += st.factorizations;
+        state = st.state;
+    }
+    (unit, plain)
+}
+
 /// The FE solves (Newton iterations) per step of the unit against the plain
 /// FE step on the same fibre-length path, on a passive pull and an
 /// activated one.
@@ -362,32 +404,9 @@ fn the_unit_costs_a_few_fe_solves_more_than_the_plain_step() {
     for a in [0.0, 1.0] {
         let u = unit(0.04, 0.0, true);
         let s = setup(&p, &u);
-        let path0 = 0.1 + L0;
-        let d = disc();
-        let mt = MusculotendonFE::initialize(d.clone(), &s, path0, a, 1.0).unwrap();
-        let (mut solves, mut trials, mut fibre) = (0, 0, vec![]);
+        let mt = MusculotendonFE::initialize(disc(), &s, 0.1 + L0, a, 1.0).unwrap();
         let n = 200;
-        run(
-            &s,
-            mt.clone(),
-            n,
-            a,
-            |k| path0 + 5e-3 * H * k as f64,
-            |m| {
-                solves += m.iterations;
-                trials += m.trials;
-                fibre.push(m.output(UnitOutput::FibreLength));
-            },
-        );
-        let mut plain = mt.muscle.clone();
-        let mut plain_solves = 0;
-        for &l in &fibre {
-            let st = plain
-                .step(&p, AREA, level(&p, plain.last.activation, a), l, None)
-                .unwrap();
-            plain_solves += st.iterations;
-            plain = st.state;
-        }
+        let ([solves, trials, _], [plain_solves, ..]) = pull_against_plain(&s, &mt, n, a);
         let ratio = solves as f64 / plain_solves as f64;
         eprintln!(
             "a = {a}: {:.3} FE solves per step (unit, {:.2} trials) vs {:.3} (plain): ratio {ratio:.2}",
@@ -412,7 +431,6 @@ fn the_unit_factorises_about_as_often_as_the_plain_step() {
     for a in [0.0, 1.0] {
         let u = unit(0.04, 0.0, true);
         let s = setup(&p, &u);
-        let path0 = 0.1 + L0;
         let default_mesh = discretization(
             None,
             L0,
@@ -422,29 +440,9 @@ fn the_unit_factorises_about_as_often_as_the_plain_step() {
             FibreLayout::Axial,
         )
         .unwrap();
-        let mt = MusculotendonFE::initialize(default_mesh, &s, path0, a, 1.0).unwrap();
-        let (mut unit_f, mut fibre) = (0, vec![]);
+        let mt = MusculotendonFE::initialize(default_mesh, &s, 0.1 + L0, a, 1.0).unwrap();
         let n = 400;
-        run(
-            &s,
-            mt.clone(),
-            n,
-            a,
-            |k| path0 + 5e-3 * H * k as f64,
-            |m| {
-                unit_f += m.factorizations;
-                fibre.push(m.output(UnitOutput::FibreLength));
-            },
-        );
-        let mut plain = mt.muscle.clone();
-        let mut plain_f = 0;
-        for &l in &fibre {
-            let st = plain
-                .step(&p, AREA, level(&p, plain.last.activation, a), l, None)
-                .unwrap();
-            plain_f += st.factorizations;
-            plain = st.state;
-        }
+        let ([.., unit_f], [.., plain_f]) = pull_against_plain(&s, &mt, n, a);
         eprintln!("a = {a}: factorisations unit {unit_f}, plain {plain_f} in {n} steps");
         assert!(
             unit_f as f64 <= 1.5 * plain_f as f64 + 2.0,
