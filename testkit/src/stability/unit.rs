@@ -49,10 +49,9 @@
 //! F0, so the law's cap would ask its tendon past rupture. The FE unit's
 //! caps over the parameter sets: 1.19–1.24 with D = 1e-9, 1.22–1.36 with
 //! D = 1e-6, 1.55–1.82 with D = 1e-4 (`tests/stability_subset.rs` checks
-//! the margin at each). With D = 1e-12 its relaxed initialization past
-//! stretch 1.15 does not always converge (Newton stalls at a residual near
-//! 1e-7 N); a path it refuses counts as too long, so a cap found there is
-//! on the short side.
+//! the margin at each); with D = 1e-12, 1.226. A path the relaxed unit
+//! refuses counts as too long, so a cap found there would be on the short
+//! side.
 //!
 //! Entry points: [`program_of`] (the program a model runs in a cell),
 //! [`unit_breakpoints`] (its path at the program's breakpoints),
