@@ -365,7 +365,7 @@ impl Muscle {
         let mut last_error = String::new();
         let mut n = 1;
         while n <= MAX_SUBSTEPS {
-            match self.advance_in(p, length, h, activation, n) {
+            match self.advance_in(p, length, h, activation, n, Budget::for_step(&self.disc)) {
                 Ok(done) => return Ok(done),
                 Err(e) => last_error = e,
             }
@@ -380,20 +380,9 @@ impl Muscle {
     /// linear in τ, the level `activation(τ)` at each substep's ends);
     /// `Err` with the failure of the first substep that does not converge.
     /// With `n` fixed this is a smooth map of the step's inputs, which
-    /// the directional derivatives of a substepped step differentiate.
+    /// the directional derivatives of a substepped step differentiate. All
+    /// substeps share `budget` ([`Budget::for_step`] for a step).
     pub fn advance_in(
-        &self,
-        p: &Params,
-        length: f64,
-        h: f64,
-        activation: &dyn Fn(f64) -> f64,
-        n: usize,
-    ) -> Result<Advance, String> {
-        self.advance_within(p, length, h, activation, n, Budget::for_step(&self.disc))
-    }
-
-    /// [`Self::advance_in`] within `budget`.
-    pub fn advance_within(
         &self,
         p: &Params,
         length: f64,
@@ -687,7 +676,14 @@ impl Muscle {
         for &(end, n) in pieces {
             let start = tau;
             let m = done.as_ref().map_or(self, |d| &d.muscle);
-            let piece = m.advance_in(p, at(end), end - start, &|s| activation(start + s), n)?;
+            let piece = m.advance_in(
+                p,
+                at(end),
+                end - start,
+                &|s| activation(start + s),
+                n,
+                Budget::for_step(&m.disc),
+            )?;
             tau = end;
             done = Some(piece);
         }

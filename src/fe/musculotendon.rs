@@ -194,7 +194,7 @@ fn unsolvable(e: EquilibriumError<StepFailure>, path: f64) -> StepFailure {
 /// The step of `from` to end length `length` started from `warm`, a
 /// solution of the same step (same start, level and rate) at another end
 /// length, instead of from the committed state's predictor: the FE step in
-/// one piece of one substep ([`Muscle::advance_within`]) with the muscle's
+/// one piece of one substep ([`Muscle::advance_in`]) with the muscle's
 /// predictor record replaced by one increment that makes its prediction
 /// warm's positions plus ∂x/∂L·(length − warm's length)
 /// ([`crate::fe::newton`], "Predictor"), then the committed record pushed
@@ -236,7 +236,7 @@ fn warm_step(
         tolerance: m0.tolerance,
     };
     let adv = start
-        .advance_within(p, length, h, &|tau| level.at(tau), 1, budget)
+        .advance_in(p, length, h, &|tau| level.at(tau), 1, budget)
         .ok()?;
     let s = &adv.solution;
     let increment = Increment {
