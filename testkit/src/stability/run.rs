@@ -62,7 +62,8 @@ impl Slot {
 /// not depend on what else the machine runs).
 pub struct Watch {
     /// The thread's CPU time at which the cell runs out.
-    deadline: Duration,
+    deadline: std::cell::Cell<Duration>,
+    limit: Duration,
     slot: Arc<Slot>,
 }
 
@@ -76,14 +77,22 @@ impl Watch {
     pub fn with_limit(slot: Arc<Slot>, limit: Duration) -> Watch {
         slot.attach();
         Watch {
-            deadline: thread_cpu_time() + limit,
+            deadline: std::cell::Cell::new(thread_cpu_time() + limit),
+            limit,
             slot,
         }
     }
 
+    /// The bound counted again from now: what the harness spent preparing
+    /// the cell (a unit's program) is not the model's.
+    pub fn restart(&self) {
+        self.deadline.set(thread_cpu_time() + self.limit);
+        self.beat();
+    }
+
     /// Whether the calling thread has used up the cell's CPU time.
     pub fn expired(&self) -> bool {
-        thread_cpu_time() > self.deadline
+        thread_cpu_time() > self.deadline.get()
     }
 
     fn beat(&self) {
@@ -224,10 +233,13 @@ pub struct CellResult {
     pub agreement: Option<Agreement>,
 }
 
-/// What a sample's checks need.
+/// What a run needs besides its program: the hooks, the law of the
+/// samples' checks, and a unit's path at each breakpoint of the program
+/// (`None` for a muscle; `Err` when the harness cannot map it).
 pub(crate) struct Checker<'a, M> {
     hooks: &'a Hooks<M>,
     params: Params,
+    unit_paths: Result<Option<Vec<f64>>, String>,
 }
 
 /// Runs the program with `m` steps per communication step.
@@ -263,7 +275,7 @@ pub(crate) fn execute_inner<M: Model>(
     let mut fmu = cell_fmu::<M>(cell, checker.hooks)?;
     // A unit's length input is its path: the path at each breakpoint of
     // the program, by the fibres' share (`unit`).
-    let unit_paths = unit_breakpoints(cell, checker.hooks, prog)?;
+    let unit_paths = checker.unit_paths.clone()?;
     fmu.set_real("initial_activation", prog.initial_activation)?;
     let length0 = match &unit_paths {
         Some(paths) => paths[0],
@@ -475,7 +487,11 @@ pub fn run_cell_named<M: Model>(
     let checker = Checker {
         hooks,
         params: cell.law(),
+        unit_paths: unit_breakpoints(cell, hooks, &prog),
     };
+    // The bound counts the model's runs: a unit's program and paths are the
+    // harness's (for the FE unit, tens of initializations of its own).
+    watch.restart();
     let fine_steps = prog.steps.len() * FINE_FACTOR;
     let affordable = fine_steps <= hooks.fine_budget;
     let mut coarse = execute::<M>(cell, &prog, 1, &checker, watch, affordable);
