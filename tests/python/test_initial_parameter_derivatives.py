@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import shutil
 import tomllib
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -160,11 +161,46 @@ class Fmu:
         shutil.rmtree(self.dir, ignore_errors=True)
 
 
-@pytest.fixture(scope="module", params=SCENES)
-def fmu(request):
-    f = Fmu(request.param)
-    yield f
-    f.close()
+def real_parameters(fmu_id: str) -> list[str]:
+    """The Real parameters of `fmu_id` by its committed modelDescription, so
+    that each is a test case of its own (the built FMU's are the same:
+    `test_the_cases_are_the_built_fmus_parameters`)."""
+    root = ET.parse(REPO / "modelDescription" / f"{fmu_id}.xml").getroot()
+    return [v.get("name") for v in root.iter("ScalarVariable")
+            if v.get("causality") == "parameter" and v.find("Real") is not None]
+
+
+def checked_parameters(fmu_id: str) -> list[str]:
+    """The parameters differentiated by: all, or D alone on a fixed mesh."""
+    return [n for n in real_parameters(fmu_id) if fmu_id not in FIXED_MESH_FE or n == "D"]
+
+
+@pytest.mark.parametrize("fmu_id", SCENES)
+def test_the_cases_are_the_built_fmus_parameters(fmu_id):
+    f = Fmu(fmu_id)
+    try:
+        assert [v.name for v in f.params] == real_parameters(fmu_id)
+    finally:
+        f.close()
+
+
+@pytest.fixture(scope="module")
+def opened():
+    """`opened(fmu_id)`: the FMU extracted once per module (and test worker),
+    with its initial outputs and their scales."""
+    cache = {}
+
+    def get(fmu_id):
+        if fmu_id not in cache:
+            f = Fmu(fmu_id)
+            f.y = f.initial_outputs()
+            f.scale = scales(f, f.y)
+            cache[fmu_id] = f
+        return cache[fmu_id]
+
+    yield get
+    for f in cache.values():
+        f.close()
 
 
 def scales(fmu, y):
@@ -179,30 +215,30 @@ def scales(fmu, y):
     return np.array(out)
 
 
-def test_every_real_parameter_is_a_known_with_the_declared_structure(fmu):
-    y = fmu.initial_outputs()
-    scale = scales(fmu, y)
+@pytest.mark.parametrize("fmu_id,name", [(s, n) for s in SCENES for n in checked_parameters(s)])
+def test_every_real_parameter_is_a_known_with_the_declared_structure(opened, fmu_id, name):
+    fmu = opened(fmu_id)
+    y, scale = fmu.y, fmu.scale
+    param = fmu.var[name]
+    assert param.causality == "parameter" and param.type == "Real", name
+    p = float(fmu.setup.get(name, param.start))
+    analytic = fmu.fmu_column(name)
+    ref, perturbed = fmu.reference_column(name, p)
     worst = (0.0, None)
-    params = [v for v in fmu.params if fmu.id not in FIXED_MESH_FE or v.name == "D"]
-    for param in params:
-        name = param.name
-        p = float(fmu.setup.get(name, param.start))
-        analytic = fmu.fmu_column(name)
-        ref, perturbed = fmu.reference_column(name, p)
-        for j, out in enumerate(fmu.outputs):
-            if name in fmu.deps[out.name]:
-                err = abs(p if p != 0 else 1.0) * abs(analytic[j] - ref[j]) / scale[j]
-                assert err < TOL[fmu.kind], (
-                    f"d({out.name})/d({name}) at {name} = {p}: FMU {analytic[j]!r}, "
-                    f"reference {ref[j]!r}, error {err:.2e} of scale {scale[j]:.3g}")
-                if err > worst[0]:
-                    worst = (err, f"d({out.name})/d({name})")
-            else:
-                for x, values in perturbed.items():
-                    assert values[j] == y[j], (
-                        f"{out.name} moves with {name} (at {p} {x:+} steps), but its "
-                        f"InitialUnknowns entry does not name {name}")
-                assert analytic[j] == 0.0, (out.name, name, analytic[j])
+    for j, out in enumerate(fmu.outputs):
+        if name in fmu.deps[out.name]:
+            err = abs(p if p != 0 else 1.0) * abs(analytic[j] - ref[j]) / scale[j]
+            assert err < TOL[fmu.kind], (
+                f"d({out.name})/d({name}) at {name} = {p}: FMU {analytic[j]!r}, "
+                f"reference {ref[j]!r}, error {err:.2e} of scale {scale[j]:.3g}")
+            if err > worst[0]:
+                worst = (err, f"d({out.name})/d({name})")
+        else:
+            for x, values in perturbed.items():
+                assert values[j] == y[j], (
+                    f"{out.name} moves with {name} (at {p} {x:+} steps), but its "
+                    f"InitialUnknowns entry does not name {name}")
+            assert analytic[j] == 0.0, (out.name, name, analytic[j])
     print(f"{fmu.id}: worst {worst[0]:.2e} ({worst[1]})")
 
 
