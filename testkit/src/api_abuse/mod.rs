@@ -183,7 +183,9 @@
 //! - `API_ABUSE_CASES`: random sequences of the main property (the
 //!   corrupt-state and instantiation properties get their subject's
 //!   fraction of it);
-//! - `API_ABUSE_SEED`: another fixed seed (default 0x4d75_7363_6c65);
+//! - `API_ABUSE_SEED`: another fixed seed (default 0x4d75_7363_6c65; the
+//!   main property runs half its sequences from it and half from its
+//!   successor, on two threads);
 //! - `API_ABUSE_STATS=1`: print the calls made, by function, state before
 //!   and status, and how many calls the twin and the reset shadows compared;
 //! - `API_ABUSE_ROUND_TRIP=0`: do not require every state the FMU serializes
