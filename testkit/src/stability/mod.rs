@@ -53,9 +53,9 @@
 //!
 //! Each cell is bounded by [`CELL_TIME_LIMIT`] of **CPU time of the thread
 //! running it** (coarse and reference run together, checked between steps,
-//! [`Watch`]; a unit's program, which the harness maps by initializations of
-//! the unit, is prepared before the bound starts), not wall time: a cell's outcome does not depend on what else
-//! the machine runs. The `seconds` a run reports are its wall time. A
+//! [`Watch`]; a unit's program, which the harness maps by initializations
+//! of the unit, is prepared before the bound starts), not wall time: a
+//! cell's outcome does not depend on what else the machine runs. The `seconds` a run reports are its wall time. A
 //! watchdog ends the process if one FMI call shows no sign of life for
 //! [`HANG_LIMIT`] of its thread's CPU time (so that load does not pass for a
 //! hang).
