@@ -31,7 +31,7 @@ pub fn random_call_sequences() {
             .map(|&(cases, k)| scope.spawn(move || random_call_sequences_with(cases, k)))
             .collect();
         runs.into_iter()
-            .map(|r| r.join().unwrap_or_else(|_| Err("a half panicked".into())))
+            .map(|r| r.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     });
     print_stats("random_call_sequences");
