@@ -23,6 +23,13 @@
 //! `HM_DUMP=DIR` each case writes its force and positions (one value a
 //! line, full digits) to `DIR/x_<L/L0>_<level>.txt`, to compare two builds'
 //! equilibria. `--case L/L0,level` (repeatable) replaces the three cases.
+//!
+//! Part 3: the `HillMusculotendonFE` scene's initialization
+//! (`Model::initialize` in-process, the scene's defaults: its default
+//! mesh, muscle and tendon) at its start path length and at 1.05× it, with
+//! `initial_activation` and the command at 0, 0.5 and 1: wall time (median
+//! and range of `--runs`), its counted work (every attempt), the
+//! equilibrium's trials and the tendon force. `--unit` runs part 3 alone.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -30,6 +37,9 @@ use std::time::Instant;
 use hill_muscle::fe::assembly::FactorKind;
 use hill_muscle::fe::mesh::{LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::muscle::{Discretization, Muscle};
+use hill_muscle::fe::musculotendon::UnitOutput;
+use hill_muscle::fmi2::Model;
+use hill_muscle::fmus::musculotendonfe::MusculotendonFe;
 use hill_muscle::law::{FibreHistory, FibreRate, Params};
 use hill_muscle::specimen::LENGTH as L0;
 
@@ -42,6 +52,10 @@ fn main() {
         .iter()
         .position(|a| a == "--runs")
         .map_or(3, |i| args[i + 1].parse().expect("--runs N"));
+    if args.iter().any(|a| a == "--unit") {
+        unit_initialization(runs);
+        return;
+    }
     let p = Params::default();
     let d = Arc::new(Discretization::specimen(LUMPED).unwrap());
     let (rest, _) = Muscle::isometric(d.clone(), &p, L0, 0.0).unwrap();
@@ -140,5 +154,57 @@ fn main() {
             work.2 .0,
             work.2 .1
         );
+    }
+    println!();
+    unit_initialization(runs);
+}
+
+/// Part 3 (module docs): the FE unit's initialization through its model.
+fn unit_initialization(runs: usize) {
+    type Unit = MusculotendonFe;
+    let var = |name: &str| {
+        Unit::variables()
+            .into_iter()
+            .find(|v| v.name == name)
+            .unwrap_or_else(|| panic!("no variable {name}"))
+            .id
+    };
+    let (length, activation, initial) =
+        (var("length"), var("activation"), var("initial_activation"));
+    let path0 = Unit::new().get_real(length);
+    println!("HillMusculotendonFE initialization (Model::initialize, scene defaults), {runs} runs");
+    println!("| path / start path | level | median s | range s | solves | residuals | factorisations | trials | force N |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for stretch in [1.0, 1.05] {
+        for level in [0.0, 0.5, 1.0] {
+            let mut times = Vec::new();
+            let mut row = String::new();
+            for _ in 0..runs {
+                let mut m = Unit::new();
+                m.set_real(initial, level).unwrap();
+                m.set_real(activation, level).unwrap();
+                m.set_real(length, stretch * path0).unwrap();
+                let t = Instant::now();
+                m.initialize().unwrap();
+                times.push(t.elapsed().as_secs_f64());
+                let unit = m.unit().expect("initialized");
+                let w = unit.muscle.muscle.disc.work.work();
+                row = format!(
+                    "{} | {} | {} | {} | {:.9}",
+                    w.solves,
+                    w.residuals,
+                    w.factorizations,
+                    unit.trials,
+                    unit.output(UnitOutput::Force)
+                );
+            }
+            let (lo, hi) = times
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+            println!(
+                "| {stretch} | {level} | {:.3} | {lo:.3}–{hi:.3} | {row} |",
+                median(times)
+            );
+        }
     }
 }

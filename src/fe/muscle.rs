@@ -149,6 +149,44 @@ impl Muscle {
         ))
     }
 
+    /// From this isometric equilibrium at activation level `activation`, the
+    /// one at `length` and the same level: a length ramp at the level held
+    /// (`Self::isometric_ramp`, continuation along this equilibrium's
+    /// branch), to the tolerance the cold path ends at ([`Self::isometric`]:
+    /// `RELAX_FINAL_TOLERANCE` × the tolerance when active, when it can).
+    /// What a family of nearby lengths costs after its first member (the
+    /// musculotendon unit's initialization): a few solves instead of a
+    /// passive ramp and a relaxation. The counts are this ramp's.
+    pub fn isometric_near(
+        &self,
+        p: &Params,
+        length: f64,
+        activation: f64,
+    ) -> Result<(Muscle, Solution), String> {
+        let start = Muscle {
+            trend: Trend::default(),
+            ..self.clone()
+        };
+        let ramp = |m: &Muscle| m.isometric_ramp(p, length, activation, activation, MAX_SUBSTEPS);
+        if activation == 0.0 {
+            return ramp(&start);
+        }
+        let tight = Muscle {
+            tolerance: start.tolerance * RELAX_FINAL_TOLERANCE,
+            ..start.clone()
+        };
+        match ramp(&tight) {
+            Ok((done, s)) => Ok((
+                Muscle {
+                    tolerance: start.tolerance,
+                    ..done
+                },
+                s,
+            )),
+            Err(_) => ramp(&start),
+        }
+    }
+
     /// From this isometric equilibrium (at activation level `from`), the
     /// isometric equilibrium at `length` and activation level `activation`:
     /// length and level approached together in 1, 2, 4, … `max_increments`

@@ -327,8 +327,10 @@ impl MusculotendonFE {
     /// `activation` (MODEL_NOTES "Musculotendon unit": initialization): the
     /// FE muscle's isometric equilibrium ([`Committed::initialize`]) at the
     /// fibre length where it balances the tendon, Newton's slope its
-    /// consistent dF/dL. `da_du` is the level's derivative with respect to
-    /// the command.
+    /// consistent dF/dL. Each trial after the first continues from the
+    /// last trial's equilibrium ([`Committed::initialize_near`]; cold where
+    /// that does not converge). `da_du` is the level's derivative with
+    /// respect to the command.
     pub fn initialize(
         disc: Arc<Discretization>,
         s: &Setup,
@@ -351,9 +353,19 @@ impl MusculotendonFE {
             Tolerance::Scaled(EQUILIBRIUM_RTOL),
             Some(TRUST),
             |l| {
-                let st =
-                    Committed::initialize(disc.clone(), s.params, s.area, l, activation, da_du)
-                        .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+                // From the last trial's equilibrium where that converges.
+                let near = t.kept.as_ref().and_then(|k| {
+                    k.state
+                        .initialize_near(s.params, s.area, l, activation, da_du)
+                        .ok()
+                });
+                let st = match near {
+                    Some(st) => st,
+                    None => {
+                        Committed::initialize(disc.clone(), s.params, s.area, l, activation, da_du)
+                            .map_err(|reason| StepFailure::NotConverged { length: l, reason })?
+                    }
+                };
                 let (k, _) = st
                     .state
                     .force_derivatives(s.params, s.l0, s.area)

@@ -21,6 +21,7 @@ use std::sync::{Arc, OnceLock};
 use crate::fe::discretization::{Discretization, Ends, Evaluation, DERIVATIVE_ITERATIONS};
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::muscle::Muscle;
+use crate::fe::newton::Solution;
 use crate::law::activation::{level_at, Decay};
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::{FibreHistory, FibreRate, Params};
@@ -349,8 +350,34 @@ impl Committed {
         activation: f64,
         da_du: f64,
     ) -> Result<Stepped, String> {
-        let n = disc.n_elements();
         let (muscle, s) = Muscle::isometric(disc, p, length, activation)?;
+        Ok(Self::isometric_state(area, muscle, s, activation, da_du))
+    }
+
+    /// [`Self::initialize`] from `self`, an isometric equilibrium at the same
+    /// level at another length ([`Muscle::isometric_near`]): the iterations
+    /// are this continuation's.
+    pub fn initialize_near(
+        &self,
+        p: &Params,
+        area: f64,
+        length: f64,
+        activation: f64,
+        da_du: f64,
+    ) -> Result<Stepped, String> {
+        let (muscle, s) = self.muscle.isometric_near(p, length, activation)?;
+        Ok(Self::isometric_state(area, muscle, s, activation, da_du))
+    }
+
+    /// The initial state at isometric equilibrium `muscle` (solution `s`).
+    fn isometric_state(
+        area: f64,
+        muscle: Muscle,
+        s: Solution,
+        activation: f64,
+        da_du: f64,
+    ) -> Stepped {
+        let n = muscle.disc.n_elements();
         let last = LastStep {
             start: vec![FibreHistory::REST; n],
             h: None,
@@ -358,13 +385,13 @@ impl Committed {
             da_du,
         };
         let outputs = outputs(&muscle.disc, area, muscle.length, &s.evaluation, activation);
-        Ok(Stepped {
+        Stepped {
             state: Committed::new(muscle, last, None),
             outputs,
             iterations: s.iterations,
             factorizations: s.factorizations,
             residuals: s.residuals,
-        })
+        }
     }
 
     /// One step of length `level.h` to muscle length `end_length`, the

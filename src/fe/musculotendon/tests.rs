@@ -165,6 +165,51 @@ fn a_rigid_tendon_without_pennation_is_the_plain_muscle() {
     assert_eq!(a, b);
 }
 
+/// The initialization's trials after the first continue from the last
+/// trial's equilibrium: the state they settle on is the cold isometric
+/// equilibrium at its fibre length (the same branch, within the FE
+/// solve's force tolerance), on the ascending limb, near the optimum and on
+/// the descending limb, passive and active, at less work than cold trials.
+#[test]
+fn a_continued_initialization_is_the_cold_equilibrium_at_its_length() {
+    let p = Params::default();
+    let d = disc();
+    for alpha0 in [0.0, 0.4] {
+        let u = unit(0.04, alpha0, true);
+        let s = setup(&p, &u);
+        for (stretch, a) in [(0.8, 1.0), (1.05, 0.5), (1.25, 1.0), (1.2, 0.0)] {
+            let path = u.tendon.slack_length * 1.02 + stretch * L0 * alpha0.cos();
+            let mt = MusculotendonFE::initialize(d.clone(), &s, path, a, 1.0).unwrap();
+            let l_m = mt.output(UnitOutput::FibreLength);
+            let cold = Committed::initialize(d.clone(), &p, AREA, l_m, a, 1.0).unwrap();
+            let (f, f_cold) = (
+                mt.muscle_outputs[Quantity::Force as usize],
+                cold.outputs[Quantity::Force as usize],
+            );
+            let tol = RESIDUAL_TOLERANCE * (p.sigma0 * AREA).max(f.abs());
+            eprintln!(
+                "alpha0 {alpha0} stretch {stretch} a {a}: {} trials, {} factorisations \
+                 (cold at L_M {}), |dF| {:.1e} N = {:.2} tol",
+                mt.trials,
+                mt.factorizations,
+                cold.factorizations,
+                (f - f_cold).abs(),
+                (f - f_cold).abs() / tol
+            );
+            assert!((f - f_cold).abs() <= 2.0 * tol, "{f} against {f_cold}");
+            assert!(residual(&s, &mt).abs() <= s.tol(mt.output(UnitOutput::Force)));
+            if mt.trials > 2 {
+                assert!(
+                    mt.factorizations < mt.trials as usize * cold.factorizations,
+                    "{} factorisations in {} trials",
+                    mt.factorizations,
+                    mt.trials
+                );
+            }
+        }
+    }
+}
+
 /// As ε0 → 0 the compliant unit tends to the rigid one: ε0 = 1e-4 within
 /// the tendon's stretch ~ ε0 L_TS of it.
 #[test]
