@@ -42,8 +42,6 @@ use crate::fe::tangent::{Increment, Trend};
 use crate::law::musculotendon::{
     solve_equilibrium, EquilibriumError, MuscleForce, StepRates, Tolerance, Unit, TRUST,
 };
-use crate::law::pennation::MIN_COS;
-use crate::law::tendon::RUPTURE_STRAIN_RATIO;
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::Params;
 
@@ -163,31 +161,12 @@ impl Setup<'_> {
 
 /// The message of an equilibrium that failed at path length `path`.
 fn unsolvable(e: EquilibriumError<StepFailure>, path: f64) -> StepFailure {
-    let reason = match e {
-        EquilibriumError::Muscle { error, .. } => return error,
-        EquilibriumError::LargestAngle {
-            min_fibre_length, ..
-        } => format!(
-            "the equilibrium needs fibres shorter than {min_fibre_length} m, past the largest \
-             pennation angle (cos alpha >= {MIN_COS}); a longer path or a smaller pennation_angle \
-             is needed"
-        ),
-        EquilibriumError::NoRoot { bound, residual } => format!(
-            "no equilibrium of tendon and muscle for fibre lengths the law can evaluate \
-             (F_M cos alpha - F_T = {residual:e} N at fibre length {bound} m)"
-        ),
-        EquilibriumError::TendonRupture { strain, max_strain } => format!(
-            "the equilibrium needs a tendon strain of {strain} or more, past the tendon's \
-             rupture strain {max_strain} ({RUPTURE_STRAIN_RATIO} tendon_strain_at_F0); a shorter \
-             path or a larger tendon_strain_at_F0 is needed"
-        ),
-        EquilibriumError::NoConvergence { lo, hi } => {
-            format!("the equilibrium did not converge (fibre length in [{lo}, {hi}] m)")
-        }
-    };
-    StepFailure::NotConverged {
-        length: path,
-        reason: format!("path length {path} m: {reason}"),
+    match e.reason() {
+        Ok(reason) => StepFailure::NotConverged {
+            length: path,
+            reason: format!("path length {path} m: {reason}"),
+        },
+        Err(error) => error,
     }
 }
 

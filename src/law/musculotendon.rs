@@ -21,8 +21,8 @@
 //! ([`Tendon::max_strain`]), is an error, never a clamped force.
 
 use super::params::{ParamError, TendonParamId, TENDON_PARAMETERS};
-use super::pennation::{Pennated, Pennation};
-use super::tendon::Tendon;
+use super::pennation::{Pennated, Pennation, MIN_COS};
+use super::tendon::{Tendon, RUPTURE_STRAIN_RATIO};
 
 /// The musculotendon unit's parameters (SI units; MODEL_NOTES
 /// "Musculotendon unit"; names, defaults and ranges in
@@ -186,6 +186,48 @@ pub enum EquilibriumError<E> {
     TendonRupture { strain: f64, max_strain: f64 },
     /// The iteration cap was reached.
     NoConvergence { lo: f64, hi: f64 },
+    /// The root is resolved to the precision of L_M at `fibre_length` with
+    /// the residual `residual` (N) still beyond [`DISCONTINUITY`] of the
+    /// force scale: the muscle's force jumps there (a step map that changes
+    /// between nearby end lengths), and no fibre length balances the tendon.
+    Discontinuous { fibre_length: f64, residual: f64 },
+}
+
+impl<E> EquilibriumError<E> {
+    /// Why no equilibrium was returned, for a message that names the path;
+    /// `Err` with the muscle's own failure.
+    pub fn reason(self) -> Result<String, E> {
+        Ok(match self {
+            EquilibriumError::Muscle { error, .. } => return Err(error),
+            EquilibriumError::LargestAngle {
+                min_fibre_length, ..
+            } => format!(
+                "the equilibrium needs fibres shorter than {min_fibre_length} m, past the largest \
+                 pennation angle (cos alpha >= {MIN_COS}); a longer path or a smaller \
+                 pennation_angle is needed"
+            ),
+            EquilibriumError::NoRoot { bound, residual } => format!(
+                "no equilibrium of tendon and muscle for fibre lengths the law can evaluate \
+                 (F_M cos alpha - F_T = {residual:e} N at fibre length {bound} m)"
+            ),
+            EquilibriumError::TendonRupture { strain, max_strain } => format!(
+                "the equilibrium needs a tendon strain of {strain} or more, past the tendon's \
+                 rupture strain {max_strain} ({RUPTURE_STRAIN_RATIO} tendon_strain_at_F0); a \
+                 shorter path or a larger tendon_strain_at_F0 is needed"
+            ),
+            EquilibriumError::NoConvergence { lo, hi } => {
+                format!("the equilibrium did not converge (fibre length in [{lo}, {hi}] m)")
+            }
+            EquilibriumError::Discontinuous {
+                fibre_length,
+                residual,
+            } => format!(
+                "the muscle's force jumps at fibre length {fibre_length} m (F_M cos alpha - F_T = \
+                 {residual:e} N there, the root resolved to rounding): no fibre length balances \
+                 the tendon; a shorter step may"
+            ),
+        })
+    }
 }
 
 /// One point of the iteration: L_M, the pennation and muscle there, the
@@ -214,6 +256,17 @@ pub const TRUST: f64 = 0.1;
 /// Also the bound of consecutive good points that approach a failed length
 /// with the root on its side ([`solve_equilibrium`]).
 pub const MAX_HALVINGS: u32 = 16;
+
+/// The largest residual, relative to max(F0, |F_T|), of a root resolved to
+/// the precision of L_M (a Newton correction below 4 ulp, or a bracket that
+/// narrow) beyond the tendon's own resolution there (its stiffness times
+/// 8 ulp of L_M): more is a jump of F_M(L_M) across the root, refused
+/// ([`EquilibriumError::Discontinuous`]) rather than returned as a
+/// balance. Not a multiple of the tolerance: the FE force's absolute floor
+/// is above its relative tolerance where σ0 A is tiny (1.4e-10 N at
+/// σ0 = 1 Pa, 1.5e-7 F0), while the jumps that matter, between step maps
+/// with different substep counts, are of order 1e-3 F0.
+pub const DISCONTINUITY: f64 = 1e-6;
 
 /// The tolerance of the equilibrium's residual F_M cos α − F_T.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -444,10 +497,11 @@ where
         }
         let step = pt.r / pt.dr;
         let newton_ok = pt.dr > 0.0 && step.is_finite();
-        if pt.r.abs() <= unit.tolerance_at(tol, pt.ft)
-            || (newton_ok && step.abs() <= 4.0 * f64::EPSILON * x)
-        {
+        if pt.r.abs() <= unit.tolerance_at(tol, pt.ft) {
             return accept(pt, evaluations, tendon);
+        }
+        if newton_ok && step.abs() <= 4.0 * f64::EPSILON * x {
+            return resolved(unit, tol, pt, evaluations);
         }
         if pt.r < 0.0 {
             lo = x;
@@ -460,7 +514,7 @@ where
         if lo_known && hi_known && hi - lo <= 4.0 * f64::EPSILON * hi && !failed_end {
             // The root is resolved in binary64: this point is as good as any
             // (unless an end of the bracket is a failed length: below).
-            return accept(pt, evaluations, tendon);
+            return resolved(unit, tol, pt, evaluations);
         }
         // The trials' interval: the bracket's known ends, else the
         // evaluable range's, never a failed length.
@@ -513,7 +567,7 @@ where
             };
             return match failure {
                 Some(e) => Err(e),
-                None => accept(pt, evaluations, tendon),
+                None => resolved(unit, tol, pt, evaluations),
             };
         }
         let newton_taken = newton_ok
@@ -614,6 +668,27 @@ where
 /// strain there is past [`Tendon::max_strain`]: a root at the resolution of
 /// L_M may have R < −tol (the root a little longer), and is still past
 /// rupture.
+/// [`accept`] for a point at a root resolved to the precision of L_M: its
+/// residual within [`DISCONTINUITY`] of the force scale (or the tolerance,
+/// if larger) plus the tendon's resolution there, else
+/// [`EquilibriumError::Discontinuous`].
+fn resolved<E>(
+    unit: &Unit,
+    tol: Tolerance,
+    pt: Point,
+    evaluations: u32,
+) -> Result<Equilibrium, EquilibriumError<E>> {
+    let resolution = (pt.kt * pt.pen.dprojection).abs() * 8.0 * f64::EPSILON * pt.x;
+    let scale = unit.tendon.f0.max(pt.ft.abs());
+    if pt.r.abs() > (DISCONTINUITY * scale).max(unit.tolerance_at(tol, pt.ft)) + resolution {
+        return Err(EquilibriumError::Discontinuous {
+            fibre_length: pt.x,
+            residual: pt.r,
+        });
+    }
+    accept(pt, evaluations, &unit.tendon)
+}
+
 fn accept<E>(
     pt: Point,
     evaluations: u32,

@@ -149,29 +149,9 @@ impl PathEnds<'_> {
 
 /// The message of an equilibrium that failed at path length `path`.
 fn unsolvable(e: EquilibriumError<Discard>, path: f64) -> Discard {
-    match e {
-        EquilibriumError::Muscle { error, .. } => error,
-        EquilibriumError::LargestAngle {
-            min_fibre_length, ..
-        } => Discard::Unsolvable(format!(
-            "path length = {path} m: the equilibrium needs fibres shorter than {min_fibre_length} m, \
-             past the largest pennation angle (cos alpha >= {}); a longer path or a smaller \
-             pennation_angle is needed",
-            crate::law::pennation::MIN_COS
-        )),
-        EquilibriumError::NoRoot { bound, residual } => Discard::Unsolvable(format!(
-            "path length = {path} m: no equilibrium of tendon and muscle for fibre lengths the law \
-             can evaluate (F_M cos alpha - F_T = {residual:e} N at fibre length {bound} m)"
-        )),
-        EquilibriumError::TendonRupture { strain, max_strain } => Discard::Unsolvable(format!(
-            "path length = {path} m: the equilibrium needs a tendon strain of {strain} or more, \
-             past the tendon's rupture strain {max_strain} ({} tendon_strain_at_F0); a shorter \
-             path or a larger tendon_strain_at_F0 is needed",
-            crate::law::tendon::RUPTURE_STRAIN_RATIO
-        )),
-        EquilibriumError::NoConvergence { lo, hi } => Discard::Unsolvable(format!(
-            "path length = {path} m: the equilibrium did not converge (fibre length in [{lo}, {hi}] m)"
-        )),
+    match e.reason() {
+        Ok(reason) => Discard::Unsolvable(format!("path length = {path} m: {reason}")),
+        Err(error) => error,
     }
 }
 

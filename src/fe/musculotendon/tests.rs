@@ -5,6 +5,7 @@
 //! solves per step against the plain FE step.
 
 use super::*;
+use crate::law::pennation::MIN_COS;
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::step_map::discretization;
 use crate::law::musculotendon::UnitParams;

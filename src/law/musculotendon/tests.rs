@@ -550,3 +550,49 @@ fn derivatives_match_finite_differences_of_the_solve() {
         assert!((fd_l - eq.dfibre_dforce * F0).abs() <= 1e-5 * fd_l.abs().max(1e-9));
     }
 }
+
+/// A muscle whose force jumps across the root (a step map that changes
+/// between nearby end lengths, e.g. its substep count): the root is
+/// resolved to rounding with the jump left as the residual, which is
+/// refused, not returned as a balance — with the exact slope and with a
+/// secant through the jump; a jump within [`DISCONTINUITY`] of F0 (noise)
+/// is a root.
+#[test]
+fn a_force_that_jumps_across_the_root_is_refused() {
+    let u = unit(0.04, 0.0, true);
+    let path = 0.04 * 1.05 + 1.3 * L0;
+    let free = solve(&u, path, 0.0).unwrap();
+    let at = free.fibre_length;
+    for (jump, refused) in [(3.0, true), (1e-3, true), (0.5 * DISCONTINUITY * F0, false)] {
+        for secant in [false, true] {
+            let mut smooth = synthetic(0.0);
+            let mut last: Option<(f64, f64)> = None;
+            let muscle = |l: f64| -> Result<MuscleForce, ()> {
+                let m = smooth(l)?;
+                let force = m.force + if l > at { 0.5 * jump } else { -0.5 * jump };
+                let stiffness = match last {
+                    Some((l1, f1)) if secant && l != l1 => (force - f1) / (l - l1),
+                    _ => m.stiffness,
+                };
+                last = Some((l, force));
+                Ok(MuscleForce { force, stiffness })
+            };
+            let r = solve_equilibrium(&u, path, (0.1 * L0, 5.0 * L0), L0, FIXED, None, muscle);
+            match r {
+                Err(EquilibriumError::Discontinuous {
+                    fibre_length,
+                    residual,
+                }) => {
+                    assert!(refused, "jump {jump}: refused");
+                    assert!((fibre_length - at).abs() <= 1e-12 * L0);
+                    assert!(residual.abs() > TOL && residual.abs() <= jump);
+                }
+                Ok(eq) => {
+                    assert!(!refused, "jump {jump}, secant {secant}: {eq:?}");
+                    assert!(eq.residual.abs() <= jump);
+                }
+                Err(e) => panic!("jump {jump}, secant {secant}: {e:?}"),
+            }
+        }
+    }
+}
