@@ -33,6 +33,11 @@ pub const MAX_SUBSTEPS: usize = 64;
 /// Substep counts up to which a failed (sub)step is retried by continuation
 /// ([`Discretization::solve_step_continued`]) before it is split further.
 const CONTINUED_SUBSTEPS: usize = 2;
+/// The level change over a substep above which it is retried by
+/// continuation at any substep count: with S·h ≫ 1 a jump of the command
+/// moves the level within the first substep however many there are, so
+/// substeps in time cannot split it; continuation in the level can.
+const CONTINUED_LEVEL_CHANGE: f64 = 0.25;
 /// Steps of 1 ms over which [`Muscle::isometric`]'s relaxation raises the
 /// activation level before holding it.
 pub(crate) const RELAX_RAMP: usize = 8;
@@ -400,8 +405,22 @@ impl Muscle {
         h: f64,
         activation: &dyn Fn(f64) -> f64,
     ) -> Result<Advance, String> {
+        self.advance_from(p, length, h, activation, 1)
+    }
+
+    /// [`Self::advance`] trying `first`, 2 `first`, … [`MAX_SUBSTEPS`]
+    /// substeps (`first` a power of two): what keeps several end lengths
+    /// of one step on the same map (the musculotendon unit's trials).
+    pub fn advance_from(
+        &self,
+        p: &Params,
+        length: f64,
+        h: f64,
+        activation: &dyn Fn(f64) -> f64,
+        first: usize,
+    ) -> Result<Advance, String> {
         let mut last_error = String::new();
-        let mut n = 1;
+        let mut n = first.max(1);
         while n <= MAX_SUBSTEPS {
             match self.advance_in(p, length, h, activation, n, Budget::for_step(&self.disc)) {
                 Ok(done) => return Ok(done),
@@ -460,9 +479,11 @@ impl Muscle {
                 budget: &budget,
             };
             // Continuation (a path in the inputs, same physics) on the
-            // whole step and its halves; finer substeps in time without
-            // it, so that a hopeless step ends in bounded work.
-            let solved = if n <= CONTINUED_SUBSTEPS {
+            // whole step and its halves, and on a substep that takes a
+            // jump of the level; finer substeps in time without it, so
+            // that a hopeless step ends in bounded work.
+            let jump = (a_end - a_start).abs() > CONTINUED_LEVEL_CHANGE;
+            let solved = if n <= CONTINUED_SUBSTEPS || jump {
                 disc.solve_step_continued(p, &input, cache.take())
             } else {
                 disc.solve_step(p, &input, cache.take())

@@ -19,7 +19,9 @@
 //! with the tangent it holds: where that iteration would form a tangent
 //! (its reused one stale in the soft modes a small correction measures)
 //! the trial steps cold instead, which mostly needs none — unless this
-//! step's cold trial already had to form one.
+//! step's cold trial already had to form one. A cold trial starts from
+//! the substep count of the step's last cold trial ([`Committed::step_from`]),
+//! so that F_M(L_M) is one map, not a jump between two counts' maps.
 //! The partial derivatives are the equilibrium's implicit ones with the FE
 //! step map's consistent dF_M/dL_M and dF_M/du
 //! ([`Committed::force_derivatives`], formed on first request).
@@ -40,7 +42,8 @@ use crate::fe::step_map::{
 };
 use crate::fe::tangent::{Increment, Trend};
 use crate::law::musculotendon::{
-    solve_equilibrium, EquilibriumError, MuscleForce, StepRates, Tolerance, Unit, TRUST,
+    solve_equilibrium, Equilibrium, EquilibriumError, MuscleForce, StepRates, Tolerance, Unit,
+    TRUST,
 };
 use crate::law::uniaxial::evaluable_stretch_range;
 use crate::law::Params;
@@ -259,6 +262,13 @@ struct Trials {
     residuals: usize,
     trials: u32,
     cold_factorised: bool,
+    /// The substep count the cold trials start from: the last cold
+    /// trial's, so that the step map the equilibrium solves on keeps one
+    /// count (a count switching between trials makes F_M(L_M)
+    /// discontinuous, and the root search ends in the jump; where it
+    /// still does after the count grew, [`MusculotendonFE::step`] solves
+    /// again at the grown count).
+    substeps: usize,
 }
 
 impl Trials {
@@ -272,6 +282,18 @@ impl Trials {
             residuals: 0,
             trials: 0,
             cold_factorised: false,
+            substeps: 1,
+        }
+    }
+
+    /// The record for a new search of the same step: its work and slope
+    /// kept, its trials forgotten, the substep count kept.
+    fn restart(self) -> Self {
+        Trials {
+            kept: None,
+            last: None,
+            cold_factorised: false,
+            ..self
         }
     }
 
@@ -381,44 +403,17 @@ impl MusculotendonFE {
         let l_now = self.outputs[UnitOutput::FibreLength as usize];
         let predicted = g.trial(h, l_now, path - self.path);
         let mut t = Trials::new(g.stiffness);
-        let eq = solve_equilibrium(
-            s.unit,
-            path,
-            s.range(),
-            predicted,
-            Tolerance::Scaled(EQUILIBRIUM_RTOL),
-            Some(TRUST),
-            |l| {
-                check_stretch(s.params, s.l0, l)
-                    .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
-                // Warm starts skip the error control: only without it.
-                let disc = &self.muscle.muscle.disc;
-                let budget = if t.cold_factorised {
-                    Budget::for_step(disc)
-                } else {
-                    Budget::without_factorizations(disc)
-                };
-                let warm = t
-                    .kept
-                    .as_ref()
-                    .filter(|_| substep_tolerance.is_none())
-                    .and_then(|w| {
-                        warm_step(&self.muscle, &w.state, s.params, s.area, &level, l, budget)
-                    });
-                let st = match warm {
-                    Some(st) => st,
-                    None => {
-                        let st = self
-                            .muscle
-                            .step(s.params, s.area, level, l, substep_tolerance)?;
-                        t.cold_factorised = st.factorizations > 0;
-                        st
-                    }
-                };
-                Ok(t.record(l, st, s.unit.tendon.f0))
-            },
-        )
-        .map_err(|e| unsolvable(e, path))?;
+        // Solved again from the start, at the grown count, when the search
+        // ended in the jump between the maps of two substep counts.
+        let eq = loop {
+            let first = t.substeps;
+            match self.equilibrium(s, &level, path, predicted, substep_tolerance, &mut t) {
+                Err(EquilibriumError::Discontinuous { .. }) if t.substeps > first => {
+                    t = t.restart();
+                }
+                r => break r.map_err(|e| unsolvable(e, path))?,
+            }
+        };
         debug_assert_eq!(
             eq.fibre_length,
             t.kept.as_ref().map_or(0.0, |k| k.state.muscle.length)
@@ -442,6 +437,64 @@ impl MusculotendonFE {
             done.guess.slope = pen.cos;
         }
         Ok(done)
+    }
+
+    /// The equilibrium of [`Self::step`] from first trial `predicted`, its
+    /// trials recorded in `t` (their cold steps from `t.substeps` substeps).
+    fn equilibrium(
+        &self,
+        s: &Setup,
+        level: &StepLevel,
+        path: f64,
+        predicted: f64,
+        substep_tolerance: Option<f64>,
+        t: &mut Trials,
+    ) -> Result<Equilibrium, EquilibriumError<StepFailure>> {
+        solve_equilibrium(
+            s.unit,
+            path,
+            s.range(),
+            predicted,
+            Tolerance::Scaled(EQUILIBRIUM_RTOL),
+            Some(TRUST),
+            |l| {
+                check_stretch(s.params, s.l0, l)
+                    .map_err(|reason| StepFailure::NotConverged { length: l, reason })?;
+                // Warm starts skip the error control: only without it.
+                let disc = &self.muscle.muscle.disc;
+                let budget = if t.cold_factorised {
+                    Budget::for_step(disc)
+                } else {
+                    Budget::without_factorizations(disc)
+                };
+                let warm = t
+                    .kept
+                    .as_ref()
+                    .filter(|_| substep_tolerance.is_none())
+                    .and_then(|w| {
+                        warm_step(&self.muscle, &w.state, s.params, s.area, level, l, budget)
+                    });
+                let st = match warm {
+                    Some(st) => st,
+                    None => {
+                        let st = self.muscle.step_from(
+                            s.params,
+                            s.area,
+                            *level,
+                            l,
+                            substep_tolerance,
+                            t.substeps,
+                        )?;
+                        t.cold_factorised = st.factorizations > 0;
+                        if let (None, Some(sub)) = (substep_tolerance, &st.state.substepped) {
+                            t.substeps = sub.pieces.iter().map(|&(_, n)| n).max().unwrap_or(1);
+                        }
+                        st
+                    }
+                };
+                Ok(t.record(l, st, s.unit.tendon.f0))
+            },
+        )
     }
 
     /// The unit at the accepted trial `st` on path `path`.

@@ -406,6 +406,20 @@ impl Committed {
         end_length: f64,
         substep_tolerance: Option<f64>,
     ) -> Result<Stepped, StepFailure> {
+        self.step_from(p, area, level, end_length, substep_tolerance, 1)
+    }
+
+    /// [`Self::step`] whose uncontrolled step tries `first` substeps
+    /// first ([`Muscle::advance_from`]).
+    pub fn step_from(
+        &self,
+        p: &Params,
+        area: f64,
+        level: StepLevel,
+        end_length: f64,
+        substep_tolerance: Option<f64>,
+        first: usize,
+    ) -> Result<Stepped, StepFailure> {
         let (muscle, h) = (&self.muscle, level.h);
         let activation = |tau| level.at(tau);
         let adv = match substep_tolerance {
@@ -414,7 +428,7 @@ impl Committed {
                 let tolerance = fraction * p.sigma0;
                 muscle.advance_controlled(p, end_length, h, &activation, tolerance, &rates)
             }
-            None => muscle.advance(p, end_length, h, &activation),
+            None => muscle.advance_from(p, end_length, h, &activation, first),
         }
         .map_err(|reason| StepFailure::NotConverged {
             length: end_length,

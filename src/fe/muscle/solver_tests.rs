@@ -356,6 +356,49 @@ fn an_activation_jump_completes_in_an_equilibrium() {
     assert!(dx < tol && df < tol, "|dx|/L0 {dx:e}, dF {df:e}");
 }
 
+/// An activation jump 0 → 1 with fast dynamics (S = 1e5/s: the level
+/// reaches 1 within the first substep of any count) in one 10 ms step on
+/// a squat, very compressible specimen (L0 5 cm, area 8.9 cm², D = 1e-4,
+/// alpha = 1000, graded 0.9 × 0.6) at 1.05 L0: the substep that holds the
+/// jump is continued in the level whatever the substep count (without
+/// that, no count up to 64 converged), and the step ends in an
+/// equilibrium.
+#[test]
+fn a_fast_activation_jump_on_a_squat_compressible_specimen_completes() {
+    let p = Params {
+        d_comp: 1e-4,
+        alpha: 1000.0,
+        s: 1e5,
+        ..Params::default()
+    };
+    let d = Arc::new(
+        Discretization::fusiform_graded(
+            0.05,
+            8.919e-4,
+            Resolution {
+                n_axial: 6,
+                n_radial: 1,
+            },
+            Grading {
+                axial: 0.9,
+                radial: 0.6,
+            },
+            FibreLayout::Axial,
+            Ends::Clamped,
+        )
+        .unwrap(),
+    );
+    let (m, _) = Muscle::isometric(d.clone(), &p, 0.0525, 0.0).unwrap();
+    let h = 1e-2;
+    let r = m
+        .advance(&p, 0.0525, h, &|tau| 1.0 - (-p.s * tau).exp())
+        .unwrap();
+    let (dx, df) = distance_to_equilibrium(&d, &p, &r);
+    let tol = 10.0 * RESIDUAL_TOLERANCE;
+    assert!(dx < tol && df < tol, "|dx|/L0 {dx:e}, dF {df:e}");
+    assert_eq!(r.activation, 1.0);
+}
+
 /// The discretization's ledger counts every attempt: a smooth step that
 /// converges at its first attempt spends exactly what it reports; an
 /// activated length jump of 40 % in one 10 ms step, whose first attempts

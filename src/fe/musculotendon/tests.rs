@@ -5,10 +5,10 @@
 //! solves per step against the plain FE step.
 
 use super::*;
-use crate::law::pennation::MIN_COS;
 use crate::fe::mesh::{FibreLayout, Grading, Resolution};
 use crate::fe::step_map::discretization;
 use crate::law::musculotendon::UnitParams;
+use crate::law::pennation::MIN_COS;
 use crate::specimen::{LENGTH as L0, MEAN_AREA as AREA};
 
 const H: f64 = 1e-3;
@@ -634,4 +634,78 @@ fn steady_pulls_take_at_most_two_trials_per_step() {
         assert!(10 * more <= steady.len(), "a = {a}, h = {h}: {trials:?}");
         assert!(worst <= 4, "a = {a}, h = {h}: {trials:?}");
     }
+}
+
+/// The first step of a fast activation jump (S = 1e5/s, command 0 → 1,
+/// path held) of the stability matrix's squat FE unit (L0 5 cm, area
+/// 8.9 cm², alpha = 1000, graded 0.9 × 0.6, L_TS 4 cm, ε0 0.04): the
+/// equilibrium after step `h` at compressibility `d_comp` from the passive
+/// state on `path`.
+fn squat_jump(d_comp: f64, h: f64, path: f64) -> Result<MusculotendonFE, StepFailure> {
+    let p = Params {
+        d_comp,
+        alpha: 1000.0,
+        s: 1e5,
+        ..Params::default()
+    };
+    let area = 8.919e-4;
+    let d = discretization(
+        None,
+        L0,
+        area,
+        Resolution {
+            n_axial: 6,
+            n_radial: 1,
+        },
+        Grading {
+            axial: 0.9,
+            radial: 0.6,
+        },
+        FibreLayout::Axial,
+    )
+    .unwrap();
+    let up = UnitParams {
+        tendon_slack_length: 0.04,
+        tendon_strain_at_f0: 0.04,
+        pennation_angle: 0.0,
+        compliant_tendon: true,
+    };
+    let u = Unit::new(&up, L0, p.sigma0 * area);
+    let s = Setup {
+        params: &p,
+        l0: L0,
+        area,
+        unit: &u,
+    };
+    let mt = MusculotendonFE::initialize(d, &s, path, 0.0, 1.0).unwrap();
+    let on = StepLevel::new(true, p.s, 0.0, 1.0, 0.0, h, (-p.s * h).exp());
+    let next = mt.step(&s, on, path, None)?;
+    assert!(residual(&s, &next).abs() <= s.tol(next.output(UnitOutput::Force)));
+    Ok(next)
+}
+
+/// At D = 1e-4 and h = 10 ms the FE step takes 16 substeps, and whether 8
+/// would do depends on the end length. The trials keep the count of the
+/// last cold trial, so F_M(L_M) stays one continuous map and the
+/// equilibrium converges in a few trials. With the count switching between
+/// 8 and 16 the root search ended in the jump between the two maps (3 N
+/// apart): a residual of 0.38 N accepted as a balance, now refused as a
+/// discontinuity.
+#[test]
+fn the_trials_of_a_substepped_step_keep_one_substep_count() {
+    let next = squat_jump(1e-4, 1e-2, 0.0925774960907086).unwrap();
+    let sub = next.muscle.substepped.as_ref().expect("the step substeps");
+    assert!(sub.pieces[0].1 > 1);
+    assert!(next.trials <= 8, "{} trials", next.trials);
+}
+
+/// At D = 1e-12 and h = 0.1 s the first trials step in one piece and a
+/// later one needs substeps: its map is another, and the search ends in the
+/// jump between the two (1.3 N). The equilibrium is then solved again from
+/// its first trial at the grown count, all trials on one map.
+#[test]
+fn a_search_that_ends_in_a_grown_counts_jump_is_solved_again_at_that_count() {
+    let next = squat_jump(1e-12, 0.1, 0.09270372023257349).unwrap();
+    let sub = next.muscle.substepped.as_ref().expect("the step substeps");
+    assert!(sub.pieces[0].1 > 1);
 }
