@@ -367,7 +367,7 @@ impl<'a, M: Model> RelaxedUnit<'a, M> {
     }
 
     /// The path at which the relaxed unit holds its fibres at `stretch`
-    /// (at most [`Self::cap`]; within 1e-10, at or below): L_TS + λ L0 cos α
+    /// (at most [`Self::cap`]; within [`PATH_STRETCH_TOL`], at or below): L_TS + λ L0 cos α
     /// for λ ≤ 1 (a slack tendon), else a root between the tendon slack
     /// and the tendon at the cap's force.
     pub fn path(&self, stretch: f64) -> Result<f64, String> {
@@ -382,6 +382,12 @@ impl<'a, M: Model> RelaxedUnit<'a, M> {
             );
             let at_lo = self.at(lo)?.stretch - stretch;
             let at_hi = self.at(hi)?.stretch - stretch;
+            // At the cap itself hi is the cap's path, where the fibres'
+            // stretch is the cap's to the unit's equilibrium tolerance,
+            // either side of it: within the tolerance below, hi is the path.
+            if (-PATH_STRETCH_TOL..0.0).contains(&at_hi) {
+                return Ok(hi);
+            }
             if at_hi < 0.0 {
                 return Err(format!(
                     "the relaxed unit does not reach fibre stretch {stretch} below its cap"
@@ -390,12 +396,15 @@ impl<'a, M: Model> RelaxedUnit<'a, M> {
             Ok(rising_root(
                 (lo, at_lo.min(0.0)),
                 (hi, at_hi),
-                1e-10,
+                PATH_STRETCH_TOL,
                 excess,
             ))
         })
     }
 }
+
+/// The tolerance of [`RelaxedUnit::path`] in fibre stretch.
+pub const PATH_STRETCH_TOL: f64 = 1e-10;
 
 /// The root of a rising function g on [a, b] with g(a) ≤ 0 ≤ g(b) (given as
 /// `(a, g(a))`, `(b, g(b))`), by the Illinois method (regula falsi halving
