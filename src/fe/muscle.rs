@@ -408,9 +408,10 @@ impl Muscle {
         self.advance_from(p, length, h, activation, 1)
     }
 
-    /// [`Self::advance`] trying `first`, 2 `first`, … [`MAX_SUBSTEPS`]
-    /// substeps (`first` a power of two): what keeps several end lengths
-    /// of one step on the same map (the musculotendon unit's trials).
+    /// [`Self::advance`] trying `first`, 2 `first`, … up to [`MAX_SUBSTEPS`]
+    /// substeps (`first` one of [`Self::advance`]'s counts, a power of
+    /// two): what keeps several end lengths of one step on the same map
+    /// (the musculotendon unit's trials).
     pub fn advance_from(
         &self,
         p: &Params,

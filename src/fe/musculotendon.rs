@@ -286,12 +286,14 @@ impl Trials {
         }
     }
 
-    /// The record for a new search of the same step: its work and slope
-    /// kept, its trials forgotten, the substep count kept.
-    fn restart(self) -> Self {
+    /// The record for a new search of the same step from Newton's slope
+    /// `slope` (not a secant that may span the jump): its work and
+    /// substep count kept, its trials forgotten.
+    fn restart(self, slope: f64) -> Self {
         Trials {
             kept: None,
             last: None,
+            slope,
             cold_factorised: false,
             ..self
         }
@@ -409,7 +411,7 @@ impl MusculotendonFE {
             let first = t.substeps;
             match self.equilibrium(s, &level, path, predicted, substep_tolerance, &mut t) {
                 Err(EquilibriumError::Discontinuous { .. }) if t.substeps > first => {
-                    t = t.restart();
+                    t = t.restart(g.stiffness);
                 }
                 r => break r.map_err(|e| unsolvable(e, path))?,
             }
