@@ -107,6 +107,25 @@ pub fn discretization(
         .map(Arc::new)
 }
 
+/// The stability matrix's FE specimen on its 6 × 1 mesh: L0 5 cm, the FE
+/// unit scene's area 8.919 cm² (squat), graded as the default mesh — the
+/// tests' hard case for stiff, very compressible laws.
+#[cfg(test)]
+pub(crate) fn squat_specimen() -> Arc<Discretization> {
+    discretization(
+        None,
+        0.05,
+        8.919e-4,
+        Resolution {
+            n_axial: 6,
+            n_radial: 1,
+        },
+        crate::fe::mesh::LUMPED_GRADING,
+        FibreLayout::Axial,
+    )
+    .expect("the squat specimen")
+}
+
 /// Whether `d` is the discretization of this geometry, mesh and fibre
 /// layout.
 pub fn built_with(

@@ -316,20 +316,7 @@ fn isometric_initialization_with_d_1e_12_ends_at_the_rounding_floor() {
         d_comp: 1e-12,
         ..Params::default()
     };
-    let d = Arc::new(
-        Discretization::fusiform_graded(
-            0.05,
-            8.919e-4,
-            Resolution {
-                n_axial: 6,
-                n_radial: 1,
-            },
-            crate::fe::mesh::LUMPED_GRADING,
-            FibreLayout::Axial,
-            Ends::Clamped,
-        )
-        .unwrap(),
-    );
+    let d = crate::fe::step_map::squat_specimen();
     for stretch in [0.3, 1.2] {
         let (dx, df) = isometric_distance(&d, &p, 0.05 * stretch, 0.0);
         let tol = 10.0 * RESIDUAL_TOLERANCE;
@@ -371,23 +358,7 @@ fn a_fast_activation_jump_on_a_squat_compressible_specimen_completes() {
         s: 1e5,
         ..Params::default()
     };
-    let d = Arc::new(
-        Discretization::fusiform_graded(
-            0.05,
-            8.919e-4,
-            Resolution {
-                n_axial: 6,
-                n_radial: 1,
-            },
-            Grading {
-                axial: 0.9,
-                radial: 0.6,
-            },
-            FibreLayout::Axial,
-            Ends::Clamped,
-        )
-        .unwrap(),
-    );
+    let d = crate::fe::step_map::squat_specimen();
     let (m, _) = Muscle::isometric(d.clone(), &p, 0.0525, 0.0).unwrap();
     let h = 1e-2;
     let r = m

@@ -648,22 +648,8 @@ fn squat_jump(d_comp: f64, h: f64, path: f64) -> Result<MusculotendonFE, StepFai
         s: 1e5,
         ..Params::default()
     };
-    let area = 8.919e-4;
-    let d = discretization(
-        None,
-        L0,
-        area,
-        Resolution {
-            n_axial: 6,
-            n_radial: 1,
-        },
-        Grading {
-            axial: 0.9,
-            radial: 0.6,
-        },
-        FibreLayout::Axial,
-    )
-    .unwrap();
+    let d = crate::fe::step_map::squat_specimen();
+    let area = d.area;
     let up = UnitParams {
         tendon_slack_length: 0.04,
         tendon_strain_at_f0: 0.04,
