@@ -77,14 +77,40 @@ pub enum UnitOutput {
 pub const N_UNIT: usize = 5;
 
 /// What the next step's first trial extrapolates from: dL_M/dℓ of the last
-/// step (`slope`), the rates of L_M (m/s) and of the path ([`StepRates`]), and
-/// Newton's slope dF_M/dL_M (`stiffness`, N/m). They change the cost, not
-/// the result beyond the equilibrium's tolerance.
+/// step (`slope`), the rates of L_M (m/s) and of the path ([`StepRates`]),
+/// Newton's slope dF_M/dL_M (`stiffness`, N/m) and the root's offset from
+/// the committed L_M (`offset`, m: [`root_offset`]). They change the cost,
+/// not the result beyond the equilibrium's tolerance.
+///
+/// The rates are those of the roots, not of the committed fibre lengths:
+/// a committed L_M lies anywhere within the equilibrium's tolerance of its
+/// root, and extrapolating to second order amplifies that scatter about
+/// 4.4× (√(3² + 3² + 1)), more than the tolerance the first trial must hit.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Guess {
     pub slope: f64,
     pub stiffness: f64,
     pub rates: StepRates,
+    pub offset: f64,
+}
+
+/// The largest root offset kept, relative to L_M: a Newton correction of
+/// a residual within the equilibrium's tolerance is far smaller unless
+/// dR/dL_M is nearly 0 (a slack tendon on a slack muscle), where the root
+/// is not determined and the committed L_M is as good a start.
+const ROOT_OFFSET_MAX: f64 = 1e-6;
+
+/// The Newton correction −R/R_L from the accepted fibre length `fibre`
+/// towards the equilibrium's exact root, R the residual F_M cos α − F_T
+/// there and R_L = dR/dL_M with Newton's slope; 0 where R_L is not
+/// positive or the correction exceeds [`ROOT_OFFSET_MAX`] L_M.
+fn root_offset(residual: f64, r_l: f64, fibre: f64) -> f64 {
+    let offset = -residual / r_l;
+    if r_l > 0.0 && offset.abs() <= ROOT_OFFSET_MAX * fibre {
+        offset
+    } else {
+        0.0
+    }
 }
 
 impl Guess {
@@ -402,8 +428,8 @@ impl MusculotendonFE {
     ) -> Result<MusculotendonFE, StepFailure> {
         let h = level.h;
         let g = &self.guess;
-        let l_now = self.outputs[UnitOutput::FibreLength as usize];
-        let predicted = g.trial(h, l_now, path - self.path);
+        let root_now = self.outputs[UnitOutput::FibreLength as usize] + g.offset;
+        let predicted = g.trial(h, root_now, path - self.path);
         let mut t = Trials::new(g.stiffness);
         // Solved again from the start, at the grown count, when the search
         // ended in the jump between the maps of two substep counts.
@@ -422,22 +448,29 @@ impl MusculotendonFE {
         );
         let st = t.kept.take().expect("the equilibrium evaluates the muscle");
         let l_end = st.state.muscle.length;
-        let guess = g.after(h, l_end - l_now, path - self.path);
-        let mut done = Self::finish(s, path, st, t, guess);
+        let mut done = Self::finish(s, path, st, t, *g);
         if done.outputs.iter().any(|x| !x.is_finite()) {
             return Err(StepFailure::NonFiniteOutput { length: l_end });
         }
-        // dL_M/dℓ of the equilibrium with Newton's slope: the next guess.
+        // dL_M/dℓ of the equilibrium and the root's offset, with Newton's
+        // slope: the next guess.
         let pen = s.unit.pennation.at(l_end);
-        if s.unit.compliant {
+        let (slope, offset) = if s.unit.compliant {
             let f_m = done.muscle_outputs[Quantity::Force as usize];
             let kt = s.unit.tendon.force(path - pen.projection).1;
             let r_l = done.guess.stiffness * pen.cos + f_m * pen.dcos + kt * pen.dprojection;
             let slope = kt / r_l;
-            done.guess.slope = if slope.is_finite() { slope } else { 0.0 };
+            let slope = if slope.is_finite() { slope } else { 0.0 };
+            (slope, root_offset(eq.residual, r_l, l_end))
         } else {
-            done.guess.slope = pen.cos;
-        }
+            (pen.cos, 0.0)
+        };
+        let root_end = l_end + offset;
+        done.guess = Guess {
+            slope,
+            offset,
+            ..done.guess.after(h, root_end - root_now, path - self.path)
+        };
         Ok(done)
     }
 

@@ -607,8 +607,14 @@ fn a_slack_drop_activated_stays_near_the_root() {
 /// the common case: on a passive and an activated pull (5 mm/s at h = 1
 /// ms), after the first few steps, at most two trials per step on average,
 /// nine steps in ten by the second trial, none past the fourth; the first
-/// trial being L_M extrapolated to second order ([`Guess::trial`]), the
-/// second its Newton correction with the last step's secant.
+/// trial being the root extrapolated to second order ([`Guess::trial`]), the
+/// second its Newton correction with the last step's secant. On the
+/// passive pull, whose fibre length is smooth in time, nine steps in ten
+/// end at their first trial: the extrapolation from the roots, not the
+/// committed fibre lengths, lands within the equilibrium's tolerance (from
+/// the committed lengths, whose scatter it amplifies, 1.8 trials per step).
+/// The activated pull's fibres are in a transient of the force–velocity
+/// relation whose third difference over a step exceeds the tolerance.
 #[test]
 fn steady_pulls_take_at_most_two_trials_per_step() {
     let p = Params::default();
@@ -633,6 +639,50 @@ fn steady_pulls_take_at_most_two_trials_per_step() {
         assert!(mean <= 2.0, "a = {a}, h = {h}: {trials:?}");
         assert!(10 * more <= steady.len(), "a = {a}, h = {h}: {trials:?}");
         assert!(worst <= 4, "a = {a}, h = {h}: {trials:?}");
+        if a == 0.0 {
+            let first = steady.iter().filter(|&&t| t == 1).count();
+            assert!(10 * first >= 9 * steady.len(), "{trials:?}");
+        }
+    }
+}
+
+/// The guess's root offset is Newton's correction towards the exact root:
+/// the plain FE step from the same start to the committed L_M plus the
+/// offset leaves an equilibrium residual smaller than at the committed L_M
+/// (in sum over a passive and a pennated activated pull; what is left is
+/// the FE solve's own noise, a tenth of the equilibrium's tolerance).
+#[test]
+fn the_root_offset_moves_towards_the_exact_root() {
+    let p = Params::default();
+    for (alpha0, a) in [(0.0, 0.0), (0.3, 1.0)] {
+        let u = unit(0.04, alpha0, true);
+        let s = setup(&p, &u);
+        let path0 = u.tendon.slack_length + 1.02 * L0 * alpha0.cos();
+        let mut mt = MusculotendonFE::initialize(disc(), &s, path0, a, 1.0).unwrap();
+        let (mut at_committed, mut at_root, mut moved) = (0.0, 0.0, 0);
+        for k in 1..=60 {
+            let lv = level(&p, mt.muscle.last.activation, a);
+            let next = mt.step(&s, lv, path0 + 5e-3 * H * k as f64, None).unwrap();
+            let offset = next.guess.offset;
+            let root = next.output(UnitOutput::FibreLength) + offset;
+            let plain = mt.muscle.step(&p, AREA, lv, root, None).unwrap();
+            let pen = u.pennation.at(root);
+            let f_m = plain.outputs[Quantity::Force as usize];
+            let r_root = f_m * pen.cos - u.tendon.force(next.path - pen.projection).0;
+            at_committed += residual(&s, &next).abs();
+            at_root += r_root.abs();
+            moved += usize::from(offset != 0.0);
+            mt = next;
+        }
+        eprintln!(
+            "alpha0 {alpha0}, a {a}: sum |R| {at_committed:.3e} N at the committed lengths, \
+             {at_root:.3e} N at the roots; {moved} of 60 offsets non-zero"
+        );
+        assert!(moved >= 50, "{moved}");
+        assert!(
+            at_root < 0.5 * at_committed,
+            "{at_root:e} vs {at_committed:e}"
+        );
     }
 }
 

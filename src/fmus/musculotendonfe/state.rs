@@ -63,9 +63,9 @@ wire_struct! {
         /// The path length at the end of the last step.
         path: f64,
         /// The next step's first guess: dL_M/dℓ, the fibre and path rates,
-        /// Newton's slope, the rates' changes and the last step's length
-        /// ([`Guess`] order).
-        guess: [f64; 7],
+        /// Newton's slope, the rates' changes, the last step's length and
+        /// the root's offset ([`Guess`]).
+        guess: [f64; 8],
         /// Force, stress, fibre length, tendon strain, pennation.
         outputs: [f64; N_UNIT],
         iterations: u64,
@@ -89,6 +89,7 @@ pub(super) fn encode<S: Scene>(m: &MusculotendonFEModel<S>, out: &mut Vec<u8>) {
             u.guess.rates.fibre_accel,
             u.guess.rates.path_accel,
             u.guess.rates.span,
+            u.guess.offset,
         ],
         outputs: u.outputs,
         iterations: u.iterations as u64,
@@ -208,6 +209,7 @@ fn restore_unit(u: UnitState, p: &Params) -> Result<MusculotendonFE, String> {
                 path_accel: u.guess[5],
                 span: u.guess[6],
             },
+            offset: u.guess[7],
         },
         outputs: u.outputs,
         iterations: usize::try_from(u.iterations).map_err(|e| e.to_string())?,
