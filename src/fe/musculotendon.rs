@@ -428,8 +428,13 @@ impl MusculotendonFE {
     ) -> Result<MusculotendonFE, StepFailure> {
         let h = level.h;
         let g = &self.guess;
-        let root_now = self.outputs[UnitOutput::FibreLength as usize] + g.offset;
-        let predicted = g.trial(h, root_now, path - self.path);
+        let l_now = self.outputs[UnitOutput::FibreLength as usize];
+        let root_now = l_now + g.offset;
+        // A guess is only a start: one that overflows (a restored state's
+        // guess is any finite numbers) starts from the committed length.
+        let predicted = Some(g.trial(h, root_now, path - self.path))
+            .filter(|x| x.is_finite())
+            .unwrap_or(l_now);
         let mut t = Trials::new(g.stiffness);
         // Solved again from the start, at the grown count, when the search
         // ended in the jump between the maps of two substep counts.
