@@ -80,7 +80,9 @@ pub const N_UNIT: usize = 5;
 /// step (`slope`), the rates of L_M (m/s) and of the path ([`StepRates`]),
 /// Newton's slope dF_M/dL_M (`stiffness`, N/m) and the root's offset from
 /// the committed L_M (`offset`, m: [`root_offset`]). They change the cost,
-/// not the result beyond the equilibrium's tolerance.
+/// not the result beyond the equilibrium's tolerance on one substep count
+/// (a first trial that needs more substeps than the root puts the step on
+/// that count's map: [`Trials`]).
 ///
 /// The rates are those of the roots, not of the committed fibre lengths:
 /// a committed L_M lies anywhere within the equilibrium's tolerance of its
