@@ -145,6 +145,6 @@ fn fe_musculotendon_scene_state_is_unchanged() {
     use hill_muscle::fmus::musculotendonfe::MusculotendonFEModel;
     check(
         &[golden::<MusculotendonFEModel<HillMusculotendonFE>>(12)],
-        &[("HillMusculotendonFE", 205727, 0xc5348297dc1d8c49)],
+        &[("HillMusculotendonFE", 205727, 0x43dfed8043f0395a)],
     );
 }

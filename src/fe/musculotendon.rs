@@ -46,7 +46,7 @@ use crate::law::musculotendon::{
     TRUST,
 };
 use crate::law::uniaxial::evaluable_stretch_range;
-use crate::law::Params;
+use crate::law::{solve_uniaxial, FibreHistory, FibreRate, Params};
 
 /// Tolerance of the equilibrium's residual F_M cos α − F_T, relative to
 /// max(F0, |F_T|) ([`Unit::equilibrium_tolerance`]): ten times the FE
@@ -179,6 +179,54 @@ impl Setup<'_> {
     fn range(&self) -> (f64, f64) {
         let (lo, hi) = evaluable_stretch_range(self.params);
         (lo * self.l0, hi * self.l0)
+    }
+
+    /// The first trial of the initialization's equilibrium at path `path`
+    /// and level `activation`: the fibre length where the law in
+    /// homogeneous uniaxial stress (the 1D reduction, isometric) balances
+    /// the tendon, solved to 1e-6 F0, where that is at L0 or longer; else
+    /// (or where the law cannot be solved) the rigid tendon's fibre length.
+    /// Lengthened, the clamped FE specimen carries somewhat more than the
+    /// uniaxial law, and the law's root, which has the tendon's stretch,
+    /// lies 4–20× nearer the FE root than the rigid length (unit tests);
+    /// shortened, the clamps hold back the lateral bulging the fibres'
+    /// shortening needs, the FE's active force falls far below the law's,
+    /// and the tendon is nearly slack at the FE root: the rigid length is
+    /// nearer there.
+    fn first_trial(&self, path: f64, activation: f64) -> f64 {
+        let unit = self.unit;
+        let rigid = unit
+            .pennation
+            .fibre_length_of(path - unit.tendon.slack_length)
+            .unwrap_or(self.l0)
+            .clamp(self.range().0, self.range().1);
+        let force = |l: f64| {
+            solve_uniaxial(
+                self.params,
+                l / self.l0,
+                activation,
+                &FibreHistory::REST,
+                FibreRate::Isometric,
+                1.0,
+            )
+            .map(|u| MuscleForce {
+                force: u.nominal_stress() * self.area,
+                stiffness: u.dnominal_dlambda() * self.area / self.l0,
+            })
+        };
+        solve_equilibrium(
+            unit,
+            path,
+            self.range(),
+            rigid,
+            Tolerance::Fixed(1e-6 * unit.tendon.f0),
+            None,
+            force,
+        )
+        .ok()
+        .map(|eq| eq.fibre_length)
+        .filter(|&l| l >= self.l0)
+        .unwrap_or(rigid)
     }
 
     /// The equilibrium's tolerance (N) where the tendon carries
@@ -369,15 +417,10 @@ impl MusculotendonFE {
         activation: f64,
         da_du: f64,
     ) -> Result<MusculotendonFE, String> {
-        let unit = s.unit;
-        let guess = unit
-            .pennation
-            .fibre_length_of(path - unit.tendon.slack_length)
-            .unwrap_or(s.l0)
-            .clamp(s.range().0, s.range().1);
+        let guess = s.first_trial(path, activation);
         let mut t = Trials::new(0.0);
         solve_equilibrium(
-            unit,
+            s.unit,
             path,
             s.range(),
             guess,

@@ -211,6 +211,48 @@ fn a_continued_initialization_is_the_cold_equilibrium_at_its_length() {
     }
 }
 
+/// The initialization's first trial ([`Setup::first_trial`]) is at least
+/// as near the FE unit's root as the rigid tendon's fibre length, and
+/// where the fibres are lengthened (the law's own equilibrium with the
+/// tendon) at least twice as near: on both limbs, passive and active,
+/// with and without pennation.
+#[test]
+fn the_initialization_starts_nearer_the_root_than_the_rigid_tendon() {
+    let p = Params::default();
+    let d = disc();
+    let mut nearer = 0;
+    for alpha0 in [0.0, 0.4] {
+        let u = unit(0.04, alpha0, true);
+        let s = setup(&p, &u);
+        for (stretch, a) in [
+            (0.8, 1.0),
+            (1.05, 0.5),
+            (1.25, 1.0),
+            (1.2, 0.0),
+            (1.05, 0.0),
+        ] {
+            let path = u.tendon.slack_length * 1.02 + stretch * L0 * alpha0.cos();
+            let mt = MusculotendonFE::initialize(d.clone(), &s, path, a, 1.0).unwrap();
+            let root = mt.output(UnitOutput::FibreLength);
+            let first = s.first_trial(path, a);
+            let rigid = u
+                .pennation
+                .fibre_length_of(path - u.tendon.slack_length)
+                .unwrap();
+            eprintln!(
+                "alpha0 {alpha0} stretch {stretch} a {a}: root {root:.6e}, first trial {:+.2e}, \
+                 rigid {:+.2e}, {} trials",
+                first - root,
+                rigid - root,
+                mt.trials
+            );
+            assert!((first - root).abs() <= (rigid - root).abs());
+            nearer += usize::from((first - root).abs() <= 0.5 * (rigid - root).abs());
+        }
+    }
+    assert!(nearer >= 8, "{nearer}");
+}
+
 /// As ε0 → 0 the compliant unit tends to the rigid one: ε0 = 1e-4 within
 /// the tendon's stretch ~ ε0 L_TS of it.
 #[test]
@@ -786,11 +828,13 @@ fn the_trials_of_a_substepped_step_keep_one_substep_count() {
 
 /// At D = 1e-12 and h = 0.1 s the first trials step in one piece and a
 /// later one needs substeps: its map is another, and the search ends in the
-/// jump between the two (1.3 N). The equilibrium is then solved again from
-/// its first trial at the grown count, all trials on one map.
+/// jump between the two. The equilibrium is then solved again from its
+/// first trial at the grown count, all trials on one map. (The path is one
+/// where this happens, found by a scan with the restart disabled, which
+/// then fails with the jump; the case is sensitive to the initial state.)
 #[test]
 fn a_search_that_ends_in_a_grown_counts_jump_is_solved_again_at_that_count() {
-    let next = squat_jump(1e-12, 0.1, 0.09270372023257349).unwrap();
+    let next = squat_jump(1e-12, 0.1, 0.09247).unwrap();
     let sub = next.muscle.substepped.as_ref().expect("the step substeps");
     assert!(sub.pieces[0].1 > 1);
 }
