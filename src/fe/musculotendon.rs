@@ -188,7 +188,7 @@ impl Setup<'_> {
     /// (or where the law cannot be solved) the rigid tendon's fibre length.
     /// Lengthened, the clamped FE specimen carries somewhat more than the
     /// uniaxial law, and the law's root, which has the tendon's stretch,
-    /// lies 4–20× nearer the FE root than the rigid length (unit tests);
+    /// lies 3.5–22× nearer the FE root than the rigid length (unit tests);
     /// shortened, the clamps hold back the lateral bulging the fibres'
     /// shortening needs, the FE's active force falls far below the law's,
     /// and the tendon is nearly slack at the FE root: the rigid length is
