@@ -19,7 +19,9 @@
 //! and spatial shape-function gradients ∇N_a = F⁻ᵀ ∇₀N_a:
 //! f_a = V_e τ_iso ∇N_a, and for δx_b, with g = δx_b ⊗ ∇N_b,
 //! δf_a = V_e (δτ_iso − τ_iso gᵀ) ∇N_a (since δ(F⁻ᵀ) = −gᵀ F⁻ᵀ), where δτ_iso
-//! is the Kirchhoff variation of the law for δF = g F.
+//! is the Kirchhoff variation of the law for δF = g F. As δτ_iso = J c_iso :
+//! sym(g) + g τ_iso + τ_iso gᵀ, that is the material part V_e B_aᵀ D B_b plus
+//! the geometric part V_e (∇N_a · τ_iso ∇N_b) I (D the Voigt form of J c_iso).
 //!
 //! **Volumetric forces and stiffness.** With p_a = U_J'(J_a) and
 //! ∂v_e/∂x_b = v_e ∇N_b: f = Σ_a p_a ∂v_a/∂x = Σ_e p̄_e v_e ∇N_b with the
@@ -120,26 +122,52 @@ impl IsochoricElement {
     }
 
     /// The 12 × 12 isochoric stiffness ∂f_a/∂x_b (module docs), rows and
-    /// columns ordered (node, component).
+    /// columns ordered (node, component): the blocks
+    /// K_ab = V_e (B_aᵀ D B_b + (∇N_a · τ_iso ∇N_b) I), D the law's isochoric
+    /// tangent in Voigt form ([`LawPoint::isochoric_tangent_voigt`]), B_a
+    /// the strain–displacement matrix of ∇N_a ([`strain_displacement`]).
+    /// Formed for a ≤ b and mirrored: symmetric to the bit.
     pub fn stiffness(&self, reference_volume: f64) -> nalgebra::SMatrix<f64, 12, 12> {
         let tau = self.point.kirchhoff_isochoric();
+        let d = self.point.isochoric_tangent_voigt();
+        let b = self.grad.map(|g| strain_displacement(&g));
+        let db = b.map(|bb| d * bb);
+        let tau_grad = self.grad.map(|g| tau * g);
         let mut k = nalgebra::SMatrix::<f64, 12, 12>::zeros();
-        for b in 0..4 {
-            for j in 0..3 {
-                let mut dx = Vector3::zeros();
-                dx[j] = 1.0;
-                let g = dx * self.grad[b].transpose();
-                let dtau = self.point.kirchhoff_isochoric_variation(&g) - tau * g.transpose();
-                for a in 0..4 {
-                    let df = dtau * self.grad[a] * reference_volume;
-                    for i in 0..3 {
-                        k[(3 * a + i, 3 * b + j)] = df[i];
+        for a in 0..4 {
+            for c in a..4 {
+                let geometric = self.grad[a].dot(&tau_grad[c]);
+                let mut block = b[a].transpose() * db[c];
+                for i in 0..3 {
+                    block[(i, i)] += geometric;
+                }
+                block *= reference_volume;
+                for i in 0..3 {
+                    for j in 0..3 {
+                        k[(3 * a + i, 3 * c + j)] = block[(i, j)];
+                        k[(3 * c + j, 3 * a + i)] = block[(i, j)];
                     }
                 }
             }
         }
         k
     }
+}
+
+/// The strain–displacement matrix B of a shape-function gradient g: the
+/// strains (engineering shears, [`crate::law::stress::VOIGT_PAIRS`] order)
+/// of the velocity gradient u ⊗ g are B u; Bᵀ s = σ g for the stress vector
+/// s of σ.
+pub fn strain_displacement(g: &Vector3<f64>) -> nalgebra::SMatrix<f64, 6, 3> {
+    let mut b = nalgebra::SMatrix::<f64, 6, 3>::zeros();
+    for (r, &(i, j)) in crate::law::stress::VOIGT_PAIRS.iter().enumerate() {
+        // sym(u ⊗ g)_ij = (u_i g_j + u_j g_i)/2, doubled off the diagonal.
+        b[(r, i)] += g[j];
+        if i != j {
+            b[(r, j)] += g[i];
+        }
+    }
+    b
 }
 
 /// The average-nodal-pressure volumetric term of a whole mesh (module docs):
@@ -403,6 +431,58 @@ mod tests {
         }
         // Symmetric (an energy at fixed history).
         assert!((k - k.transpose()).norm() < 1e-9 * scale);
+    }
+
+    /// The stiffness from the Voigt tangent equals, to rounding, the one
+    /// built column by column from the law's Kirchhoff variation (module
+    /// docs: δf_a = V_e (δτ_iso − τ_iso gᵀ) ∇N_a for g = e_j ⊗ ∇N_b), passive
+    /// and active, fibres stretched and shortened, backward Euler and
+    /// isometric.
+    #[test]
+    fn voigt_stiffness_equals_the_law_variation_column_by_column() {
+        let p = Params::default();
+        let dir = Vector3::new(0.6, 0.0, 0.8);
+        let x0 = reference_tet();
+        let r = TetReference::new(&x0);
+        let cases = [
+            (31u64, 0.0, 1.0, FibreRate::Step { h: 1e-3 }),
+            (37, 0.8, 1.2, FibreRate::Step { h: 1e-3 }),
+            (41, 1.0, 0.8, FibreRate::Step { h: 1e-2 }),
+            (43, 0.5, 1.1, FibreRate::Isometric),
+        ];
+        for (seed, act, lm, rate) in cases {
+            let hist = FibreHistory {
+                lambda_s: 1.0 + 0.05 * act,
+                lambda_m: lm,
+            };
+            let f = Matrix3::identity() + sample(seed) * 0.4;
+            let x = x0.map(|q| f * q);
+            let el = IsochoricElement::new(&p, &r, &x, &dir, act, &hist, rate);
+            let k = el.stiffness(r.volume);
+            let tau = el.point.kirchhoff_isochoric();
+            let mut reference = nalgebra::SMatrix::<f64, 12, 12>::zeros();
+            for b in 0..4 {
+                for j in 0..3 {
+                    let mut u = Vector3::zeros();
+                    u[j] = 1.0;
+                    let g = u * el.grad[b].transpose();
+                    let dtau = el.point.kirchhoff_isochoric_variation(&g) - tau * g.transpose();
+                    for a in 0..4 {
+                        let df = dtau * el.grad[a] * r.volume;
+                        for i in 0..3 {
+                            reference[(3 * a + i, 3 * b + j)] = df[i];
+                        }
+                    }
+                }
+            }
+            let scale = reference.norm();
+            assert!(
+                (k - reference).norm() <= 1e-13 * scale,
+                "case {seed}: {:e} of {scale:e}",
+                (k - reference).norm()
+            );
+            assert_eq!(k, k.transpose(), "case {seed}: not symmetric to the bit");
+        }
     }
 
     fn mesh_positions(m: &crate::fe::mesh::Mesh, f: &Matrix3<f64>) -> Vec<Vector3<f64>> {

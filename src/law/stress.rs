@@ -34,7 +34,7 @@
 //! is what [`LawPoint::kirchhoff_variation`] returns and the tests check
 //! against finite differences.
 
-use nalgebra::{Matrix3, Matrix6, Vector3};
+use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 
 use super::hill_fibre::{
     fibre_response, fibre_stress, FibreHistory, FibreRate, FibreResponse, FibreStress,
@@ -48,6 +48,15 @@ use super::volumetric::volumetric_derivatives;
 #[inline]
 pub fn dev(x: &Matrix3<f64>) -> Matrix3<f64> {
     x - Matrix3::identity() * (x.trace() / 3.0)
+}
+
+/// The Voigt order of the tangents' 6 × 6 forms: (11, 22, 33, 12, 23, 13).
+pub const VOIGT_PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)];
+
+/// The stress vector of a symmetric tensor in [`VOIGT_PAIRS`] order.
+#[inline]
+pub fn voigt(x: &Matrix3<f64>) -> Vector6<f64> {
+    Vector6::from_fn(|r, _| x[VOIGT_PAIRS[r]])
 }
 
 /// J^(−1/3) for J > 0. Near J = 1 (every nearly incompressible state) by
@@ -232,10 +241,7 @@ impl LawPoint {
         let id = Matrix3::identity();
         let tr_d = d.trace();
         let (u1, u11) = self.du_i;
-        let (lf, w, dw) = (self.lambda_f, self.fibre.w, self.fibre.dw_dlambda);
-        let i4 = lf * lf;
-        let psi4 = w / (2.0 * lf);
-        let psi44 = (lf * dw - w) / (4.0 * lf * lf * lf);
+        let (i4, psi4, psi44) = self.fibre_invariant_derivatives();
         let n1 = dev(&self.b_bar);
         let g4 = self.a_outer() * i4;
         let n4 = dev(&g4);
@@ -247,6 +253,44 @@ impl LawPoint {
             + second(&self.b_bar, self.i1_bar) * (4.0 * u1)
             + n4 * (4.0 * psi44 * n4.dot(d))
             + second(&g4, i4) * (4.0 * psi4)
+    }
+
+    /// [`Self::tangent_apply_isochoric`] as a 6 × 6 matrix D in the Voigt
+    /// notation of [`Self::spatial_tangent_voigt`] (stress components
+    /// (11, 22, 33, 12, 23, 13) from strains with engineering shears), formed
+    /// term by term from the module docs' tangent, symmetric by construction:
+    /// the material part B_aᵀ D B_b of an element stiffness in one pass.
+    /// With m = s(I), H = diag(1, 1, 1, ½, ½, ½) (s(d) = H ε) and s(·) a
+    /// symmetric tensor's stress vector, each push-forward of ∂²Ī/∂C∂C is
+    /// −(1/3)(s(Ḡ) mᵀ + m s(Ḡ)ᵀ) + (Ī/9) m mᵀ + (Ī/3) H.
+    pub fn isochoric_tangent_voigt(&self) -> Matrix6<f64> {
+        let (u1, u11) = self.du_i;
+        let (i4, psi4, psi44) = self.fibre_invariant_derivatives();
+        let g4 = self.a_outer() * i4;
+        let n1 = voigt(&dev(&self.b_bar));
+        let n4 = voigt(&dev(&g4));
+        let m = voigt(&Matrix3::identity());
+        let h = Matrix6::from_diagonal(&m.map(|d| if d == 1.0 { 1.0 } else { 0.5 }));
+        let second = |g: &Vector6<f64>, ibar: f64| -> Matrix6<f64> {
+            (g * m.transpose() + m * g.transpose()) * (-1.0 / 3.0)
+                + m * m.transpose() * (ibar / 9.0)
+                + h * (ibar / 3.0)
+        };
+        n1 * n1.transpose() * (4.0 * u11)
+            + second(&voigt(&self.b_bar), self.i1_bar) * (4.0 * u1)
+            + n4 * n4.transpose() * (4.0 * psi44)
+            + second(&voigt(&g4), i4) * (4.0 * psi4)
+    }
+
+    /// Ī4 = λ̄f², ψ_4 = W / (2 λ̄f) and ψ_44 = (λ̄f W' − W) / (4 λ̄f³) (module
+    /// docs, W' the consistent derivative through the CE–SEE solve).
+    fn fibre_invariant_derivatives(&self) -> (f64, f64, f64) {
+        let (lf, w, dw) = (self.lambda_f, self.fibre.w, self.fibre.dw_dlambda);
+        (
+            lf * lf,
+            w / (2.0 * lf),
+            (lf * dw - w) / (4.0 * lf * lf * lf),
+        )
     }
 
     /// The volumetric part of J c : d: J² U_J'' tr(d) I + J U_J' (tr(d) I − 2 d),
@@ -288,9 +332,8 @@ impl LawPoint {
     /// acting on strain vectors with engineering shears (2 d_12, 2 d_23, 2 d_13).
     /// Symmetric (the law has an energy at fixed history).
     pub fn spatial_tangent_voigt(&self) -> Matrix6<f64> {
-        const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)];
         let mut out = Matrix6::zeros();
-        for (col, &(k, l)) in PAIRS.iter().enumerate() {
+        for (col, &(k, l)) in VOIGT_PAIRS.iter().enumerate() {
             let mut d = Matrix3::zeros();
             if k == l {
                 d[(k, l)] = 1.0;
@@ -299,7 +342,7 @@ impl LawPoint {
                 d[(l, k)] = 0.5;
             }
             let r = self.tangent_apply(&d);
-            for (row, &(i, j)) in PAIRS.iter().enumerate() {
+            for (row, &(i, j)) in VOIGT_PAIRS.iter().enumerate() {
                 out[(row, col)] = r[(i, j)];
             }
         }
@@ -595,6 +638,42 @@ mod tests {
             let whole = pt.tangent_apply(&d);
             let parts = pt.tangent_apply_isochoric(&d) + pt.tangent_apply_volumetric(&d);
             assert!((whole - parts).norm() <= 1e-12 * whole.norm());
+        }
+    }
+
+    /// The closed-form Voigt isochoric tangent applies as
+    /// `tangent_apply_isochoric` does, on strains of every kind, passive and
+    /// active, and is symmetric to the bit.
+    #[test]
+    fn isochoric_voigt_tangent_applies_as_the_tensor_form() {
+        let p = Params::default();
+        let dir = Vector3::new(0.0, 0.6, 0.8);
+        for (seed, act) in [(3u64, 0.0), (5, 0.4), (13, 1.0)] {
+            let f = sample_f(seed);
+            let hist = FibreHistory {
+                lambda_s: 1.01,
+                lambda_m: 1.05,
+            };
+            let pt = LawPoint::new(&p, &f, &dir, act, &hist, FibreRate::Step { h: 1e-3 });
+            let c = pt.isochoric_tangent_voigt();
+            assert_eq!(c, c.transpose());
+            for k in 0..4 {
+                let g = sample_f(seed * 10 + k) - Matrix3::identity();
+                let d = (g + g.transpose()) * 0.5;
+                let strain = voigt(&d).zip_map(&voigt(&Matrix3::identity()), |e, m| {
+                    if m == 1.0 {
+                        e
+                    } else {
+                        2.0 * e
+                    }
+                });
+                let tensor = voigt(&pt.tangent_apply_isochoric(&d));
+                let matrix = c * strain;
+                assert!(
+                    (tensor - matrix).norm() <= 1e-14 * tensor.norm(),
+                    "seed {seed}: {tensor} vs {matrix}"
+                );
+            }
         }
     }
 
