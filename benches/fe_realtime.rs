@@ -45,7 +45,11 @@
 //! figures; `--only NAME` runs one workload once (for `perf record`);
 //! `--in-process` prints only the in-process table (no FMU needed), with the
 //! mean and median wall time of the step map's steps and the force in full
-//! (with `--only NAME`, of that workload alone).
+//! (with `--only NAME`, of that workload alone); `--cabi-only` leaves that
+//! table out (to alternate FMUs of several builds, whose in-process tables
+//! would all be this build's); `--mesh A,R` meshes every instance
+//! n_axial = A, n_radial = R (the C ABI workloads only; the arm's replay then
+//! reports how far that mesh's forces are from the default mesh's trace).
 
 use std::ffi::c_uint;
 use std::time::Instant;
@@ -116,11 +120,17 @@ pub(crate) fn vr_of(name: &str) -> c_uint {
 
 /// One run over `duration` seconds in steps of `h`: wall time per step [s],
 /// linear solves per step, the force at the end.
-fn run(api: &cabi::Api, inputs: Inputs, h: f64, duration: f64) -> (Vec<f64>, Vec<i32>, f64) {
+fn run(
+    api: &cabi::Api,
+    mesh: &[(c_uint, i32)],
+    inputs: Inputs,
+    h: f64,
+    duration: f64,
+) -> (Vec<f64>, Vec<i32>, f64) {
     let ins = [vr_of("activation"), vr_of("length")];
     let outs = [vr_of("force")];
     let solves_vr = vr_of("newton_iterations");
-    let instance = Instance::new(api, &api.guid);
+    let instance = Instance::with_settings(api, &api.guid, &[], mesh, &[]);
     let steps = (duration / h).round() as usize;
     let (mut times, mut solves) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
     let mut force = [0.0];
@@ -149,13 +159,13 @@ fn stats(times: &[f64], solves: &[i32]) -> [f64; 5] {
 }
 
 /// Seconds from fmi2Instantiate to fmi2ExitInitializationMode at level 1.
-fn init(api: &cabi::Api) -> f64 {
+fn init(api: &cabi::Api, mesh: &[(c_uint, i32)]) -> f64 {
     let level_1 = [
         (vr_of("initial_activation"), 1.0),
         (vr_of("activation"), 1.0),
     ];
     let t = Instant::now();
-    let instance = Instance::with_parameters(api, &api.guid, &level_1);
+    let instance = Instance::with_settings(api, &api.guid, &level_1, mesh, &[]);
     let s = t.elapsed().as_secs_f64();
     drop(instance);
     s
@@ -344,9 +354,9 @@ fn arm_in_process() {
 }
 
 /// The arm's trace through the C ABI, `runs` times: its table row.
-fn arm_cabi(api: &cabi::Api, runs: usize) {
+fn arm_cabi(api: &cabi::Api, mesh: &[(c_uint, i32)], runs: usize) {
     let trace = arm::load();
-    let replays: Vec<arm::Replayed> = (0..runs).map(|_| arm::cabi(api, &trace)).collect();
+    let replays: Vec<arm::Replayed> = (0..runs).map(|_| arm::cabi(api, mesh, &trace)).collect();
     let m = |f: &dyn Fn(&arm::Replayed) -> f64| median(replays.iter().map(f).collect());
     let st = |r: &arm::Replayed| stats(&r.times, &r.solves);
     let last = replays.last().expect("a run");
@@ -397,21 +407,30 @@ fn main() {
         return;
     }
     let api = load("HillMuscleFE");
+    // `--mesh A,R`: every instance meshed n_axial = A, n_radial = R.
+    let mesh: Vec<(c_uint, i32)> = value("--mesh").map_or(Vec::new(), |v| {
+        let (a, r) = v.split_once(',').expect("--mesh N_AXIAL,N_RADIAL");
+        vec![
+            (vr_of("n_axial"), a.parse().expect("n_axial")),
+            (vr_of("n_radial"), r.parse().expect("n_radial")),
+        ]
+    });
+    let mesh_name = value("--mesh").map_or("default mesh".to_string(), |v| format!("mesh {v}"));
 
     if let Some(only) = value("--only") {
         if only == "init" {
-            println!("init: {:.3} s", init(&api));
+            println!("init: {:.3} s", init(&api, &mesh));
             return;
         }
         if only == "arm" {
-            arm_cabi(&api, 1);
+            arm_cabi(&api, &mesh, 1);
             return;
         }
         let (_, inputs, duration) = STEPPING
             .iter()
             .find(|w| w.0 == only)
             .unwrap_or_else(|| panic!("--only passive | stretch-release | init | arm"));
-        let (t, s, f) = run(&api, *inputs, 1e-3, *duration);
+        let (t, s, f) = run(&api, &mesh, *inputs, 1e-3, *duration);
         let [mean, med, ..] = stats(&t, &s);
         println!(
             "{only}: mean {:.3} ms, median {:.3} ms, force {f:.4} N",
@@ -421,7 +440,7 @@ fn main() {
         return;
     }
 
-    println!("HillMuscleFE through the C ABI, default mesh; median of {runs} runs");
+    println!("HillMuscleFE through the C ABI, {mesh_name}; median of {runs} runs");
     println!("| workload | h (ms) | steps | mean ms/step | median ms/step | p90 ms/step | max ms/step | solves/step | wall s per simulated s | force at the end (N) |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for (name, inputs, duration) in STEPPING {
@@ -429,7 +448,7 @@ fn main() {
             let mut rows = Vec::new();
             let mut force = f64::NAN;
             for _ in 0..runs {
-                let (t, s, f) = run(&api, inputs, h, duration);
+                let (t, s, f) = run(&api, &mesh, inputs, h, duration);
                 force = f;
                 rows.push((stats(&t, &s), t.iter().sum::<f64>() / duration));
             }
@@ -448,10 +467,12 @@ fn main() {
         }
     }
     println!();
-    arm_cabi(&api, runs);
+    arm_cabi(&api, &mesh, runs);
     println!();
-    in_process(None);
-    let t: Vec<f64> = (0..runs).map(|_| init(&api)).collect();
+    if mesh.is_empty() && !args.iter().any(|a| a == "--cabi-only") {
+        in_process(None);
+    }
+    let t: Vec<f64> = (0..runs).map(|_| init(&api, &mesh)).collect();
     println!();
     println!(
         "activated initialization (command 1): median {:.3} s, min {:.3} s, max {:.3} s over {runs} runs",

@@ -113,7 +113,7 @@ fn time_fmi(case: Case, api: &Api, steps: usize, h: f64) -> (f64, f64) {
                 reals.push((vr::<Musculotendon>("substep_tolerance"), tol));
             }
             (
-                Instance::with_settings(api, &api.guid, &reals, &[(compliant, t.is_some())]),
+                Instance::with_settings(api, &api.guid, &reals, &[], &[(compliant, t.is_some())]),
                 [
                     vr::<Musculotendon>("activation"),
                     vr::<Musculotendon>("length"),

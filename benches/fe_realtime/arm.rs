@@ -110,13 +110,14 @@ pub struct Replayed {
     pub stiffness_deviation: f64,
 }
 
-/// Replay `trace` through the C ABI of `api` (panics on a non-OK status).
-pub fn cabi(api: &Api, trace: &Trace) -> Replayed {
+/// Replay `trace` through the C ABI of `api` on the mesh settings `mesh`
+/// (empty: the default mesh; panics on a non-OK status).
+pub fn cabi(api: &Api, mesh: &[(c_uint, i32)], trace: &Trace) -> Replayed {
     let mut settings: Vec<(c_uint, f64)> =
         trace.params.iter().map(|(n, v)| (vr_of(n), *v)).collect();
     settings.push((vr_of("length"), trace.length0));
     settings.push((vr_of("activation"), 0.0));
-    let instance = Instance::with_parameters(api, &api.guid, &settings);
+    let instance = Instance::with_settings(api, &api.guid, &settings, mesh, &[]);
     let c = instance.c;
     let (length, activation, force) = (vr_of("length"), vr_of("activation"), vr_of("force"));
     let outs = [force, vr_of("activation_level"), vr_of("fibre_stretch")];

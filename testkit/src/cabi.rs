@@ -35,6 +35,7 @@ type Free = unsafe extern "C" fn(*mut c_void);
 type SetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const f64) -> c_int;
 type GetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut f64) -> c_int;
 type SetBoolean = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const c_int) -> c_int;
+type SetInteger = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const c_int) -> c_int;
 type GetInteger = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut c_int) -> c_int;
 type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, c_int) -> c_int;
 type SetRealInputDerivatives =
@@ -63,6 +64,7 @@ pub struct Api {
     pub set_real: SetReal,
     pub get_real: GetReal,
     pub set_boolean: SetBoolean,
+    pub set_integer: SetInteger,
     pub get_integer: GetInteger,
     pub do_step: DoStep,
     pub set_real_input_derivatives: SetRealInputDerivatives,
@@ -135,6 +137,7 @@ pub fn load(id: &str) -> Api {
             set_real: sym(lib, "fmi2SetReal"),
             get_real: sym(lib, "fmi2GetReal"),
             set_boolean: sym(lib, "fmi2SetBoolean"),
+            set_integer: sym(lib, "fmi2SetInteger"),
             get_integer: sym(lib, "fmi2GetInteger"),
             do_step: sym(lib, "fmi2DoStep"),
             set_real_input_derivatives: sym(lib, "fmi2SetRealInputDerivatives"),
@@ -159,15 +162,16 @@ impl<'a> Instance<'a> {
     /// [`Instance::new`] with the Real parameters `(value reference, value)`
     /// set after instantiation.
     pub fn with_parameters(api: &'a Api, guid: &str, parameters: &[(c_uint, f64)]) -> Instance<'a> {
-        Self::with_settings(api, guid, parameters, &[])
+        Self::with_settings(api, guid, parameters, &[], &[])
     }
 
-    /// [`Instance::with_parameters`] with also the Boolean parameters
-    /// `(value reference, value)` set after instantiation.
+    /// [`Instance::with_parameters`] with also the Integer and Boolean
+    /// parameters `(value reference, value)` set after instantiation.
     pub fn with_settings(
         api: &'a Api,
         guid: &str,
         parameters: &[(c_uint, f64)],
+        integers: &[(c_uint, i32)],
         booleans: &[(c_uint, bool)],
     ) -> Instance<'a> {
         let name = CString::new("bench").unwrap();
@@ -188,6 +192,13 @@ impl<'a> Instance<'a> {
             for &(vr, value) in parameters {
                 assert_eq!(
                     (api.set_real)(c, &vr, 1, &value),
+                    0,
+                    "parameter {vr} = {value}"
+                );
+            }
+            for &(vr, value) in integers {
+                assert_eq!(
+                    (api.set_integer)(c, &vr, 1, &value),
                     0,
                     "parameter {vr} = {value}"
                 );

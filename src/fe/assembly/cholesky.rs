@@ -528,8 +528,9 @@ pub(super) mod tests {
 
     /// Unit costs on the default mesh at 10 % strain, f64 and f32 run
     /// alternately (`cargo test --release --lib single_precision_unit_costs
-    /// -- --ignored --nocapture`), and the probe's error estimate against
-    /// the volumetric penalty.
+    /// -- --ignored --nocapture`), a residual and a residual with the
+    /// tangent, and the probe's error estimate against the volumetric
+    /// penalty.
     #[test]
     #[ignore]
     fn single_precision_unit_costs() {
@@ -596,6 +597,24 @@ pub(super) mod tests {
             sa * 1e3,
             sb * 1e3,
             sb / sa
+        );
+        // The other unit costs of a Newton iteration at the same state: a
+        // residual, and a residual with the assembled tangent.
+        let hist = vec![FibreHistory::REST; d.n_elements()];
+        let rate = FibreRate::Step { h: 1e-3 };
+        let (mut ra, mut ta) = (vec![], vec![]);
+        for _ in 0..rounds {
+            let t = Instant::now();
+            let _e = d.evaluate(&p, &x, 0.0, &hist, rate, false).unwrap();
+            ra.push(t.elapsed().as_secs_f64());
+            let t = Instant::now();
+            let _e = d.evaluate(&p, &x, 0.0, &hist, rate, true).unwrap();
+            ta.push(t.elapsed().as_secs_f64());
+        }
+        println!(
+            "residual {:.3} ms, residual with the tangent {:.3} ms",
+            median(ra) * 1e3,
+            median(ta) * 1e3
         );
         for d_comp in [1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15] {
             let q = Params { d_comp, ..p };
