@@ -209,10 +209,7 @@ impl Setup<'_> {
                 FibreRate::Isometric,
                 1.0,
             )
-            .map(|u| MuscleForce {
-                force: u.nominal_stress() * self.area,
-                stiffness: u.dnominal_dlambda() * self.area / self.l0,
-            })
+            .map(|u| MuscleForce::of_uniaxial(&u, self.area, self.l0))
         };
         solve_equilibrium(
             unit,

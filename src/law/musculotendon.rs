@@ -23,6 +23,7 @@
 use super::params::{ParamError, TendonParamId, TENDON_PARAMETERS};
 use super::pennation::{Pennated, Pennation, MIN_COS};
 use super::tendon::{Tendon, RUPTURE_STRAIN_RATIO};
+use super::uniaxial::Uniaxial;
 
 /// The musculotendon unit's parameters (SI units; MODEL_NOTES
 /// "Musculotendon unit"; names, defaults and ranges in
@@ -138,6 +139,18 @@ impl Unit {
 pub struct MuscleForce {
     pub force: f64,
     pub stiffness: f64,
+}
+
+impl MuscleForce {
+    /// The axial force of a muscle of rest length `l0` and cross-section
+    /// `area` in the uniaxial state `u` at λ = L_M/L0: F_M = P area (P the
+    /// nominal stress on the rest section) and dF_M/dL_M = (dP/dλ) area/L0.
+    pub fn of_uniaxial(u: &Uniaxial, area: f64, l0: f64) -> MuscleForce {
+        MuscleForce {
+            force: u.nominal_stress() * area,
+            stiffness: u.dnominal_dlambda() * area / l0,
+        }
+    }
 }
 
 /// The solved equilibrium (MODEL_NOTES "Musculotendon unit") and its

@@ -188,10 +188,7 @@ impl PieceEnd for PathEnds<'_> {
             None,
             |l_m| {
                 let u = law(l_m / self.l0)?;
-                let m = MuscleForce {
-                    force: u.nominal_stress() * self.area,
-                    stiffness: u.dnominal_dlambda() * self.area / self.l0,
-                };
+                let m = MuscleForce::of_uniaxial(&u, self.area, self.l0);
                 kept = Some(u);
                 Ok(m)
             },
@@ -312,10 +309,7 @@ impl<C: Components> Musculotendon1D<C> {
                     1.0,
                 )
                 .map_err(|e| Discard::Unsolvable(muscle.unsolvable(l_m, &e.0)))?;
-                let f = MuscleForce {
-                    force: u.nominal_stress() * area,
-                    stiffness: u.dnominal_dlambda() * area / l0,
-                };
+                let f = MuscleForce::of_uniaxial(&u, area, l0);
                 kept = Some(u);
                 Ok(f)
             },
