@@ -48,8 +48,9 @@
 //! (with `--only NAME`, of that workload alone); `--cabi-only` leaves that
 //! table out (to alternate FMUs of several builds, whose in-process tables
 //! would all be this build's); `--mesh A,R` meshes every instance
-//! n_axial = A, n_radial = R (the C ABI workloads only; the arm's replay then
-//! reports how far that mesh's forces are from the default mesh's trace).
+//! n_axial = A, n_radial = R, through the C ABI and with `--in-process`
+//! (the arm's replay then reports how far that mesh's forces are from the
+//! default mesh's trace).
 
 use std::ffi::c_uint;
 use std::time::Instant;
@@ -57,7 +58,7 @@ use std::time::Instant;
 #[path = "fe_realtime/arm.rs"]
 mod arm;
 
-use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
+use hill_muscle::fe::mesh::{FibreLayout, Resolution, LUMPED, LUMPED_GRADING};
 use hill_muscle::fe::muscle::Muscle;
 use hill_muscle::fe::step_map::{discretization, StepLevel};
 use hill_muscle::law::Params;
@@ -179,17 +180,22 @@ type StepWork = (f64, usize, usize);
 /// and the solves and factorisations of the attempts that converged (what
 /// the step reports) (means), the force at the end, and each step's
 /// [`StepWork`].
-fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 6], f64, Vec<StepWork>) {
+fn counts(
+    inputs: Inputs,
+    h: f64,
+    duration: f64,
+    mesh: Resolution,
+) -> ([f64; 6], f64, Vec<StepWork>) {
     let p = Params::default();
     let d = discretization(
         None,
         L0,
         MEAN_AREA,
-        LUMPED,
+        mesh,
         LUMPED_GRADING,
         FibreLayout::Axial,
     )
-    .expect("the default mesh");
+    .expect("the mesh");
     let (mut m, _) = Muscle::isometric(d, &p, L0, 0.0).expect("rest");
     let steps = (duration / h).round() as usize;
     let (mut sum, mut a0, mut force) = ([0usize; 6], 0.0, f64::NAN);
@@ -220,7 +226,7 @@ fn counts(inputs: Inputs, h: f64, duration: f64) -> ([f64; 6], f64, Vec<StepWork
 
 /// The in-process tables (of the workload `only` alone when given): the
 /// work per step and its wall time.
-fn in_process(only: Option<&str>) {
+fn in_process(only: Option<&str>, mesh: Resolution) {
     let wanted = |name: &str| only.map_or(true, |o| o == name);
     println!("Work per step in-process (the FMU's step map, its defaults; every attempt counted, and in parentheses the attempts that converged, as the step reports them)");
     println!("| workload | h (ms) | solves/step | residuals/step | factorisations/step | substeps/step | mean ms/step | median ms/step | wall s per simulated s | force at the end (N) |");
@@ -235,7 +241,7 @@ fn in_process(only: Option<&str>) {
                 [solves, residuals, factorizations, substeps, solves_ok, factorizations_ok],
                 force,
                 steps,
-            ) = counts(inputs, h, duration);
+            ) = counts(inputs, h, duration, mesh);
             let times: Vec<f64> = steps.iter().map(|s| s.0).collect();
             let [mean, med, ..] = stats(&times, &[0]);
             println!(
@@ -280,15 +286,15 @@ fn in_process(only: Option<&str>) {
     }
     if wanted("arm") {
         println!();
-        arm_in_process();
+        arm_in_process(mesh);
     }
 }
 
 /// The arm's trace in-process: the work of its steps and of their
 /// d force / d length, and its most expensive steps.
-fn arm_in_process() {
+fn arm_in_process(mesh: Resolution) {
     let trace = arm::load();
-    let (work, force, stiffness, attempts) = arm::in_process(&trace);
+    let (work, force, stiffness, attempts) = arm::in_process(&trace, mesh);
     let n = work.len() as f64;
     let mean = |f: &dyn Fn(&arm::Work) -> f64| work.iter().map(f).sum::<f64>() / n;
     let step: Vec<f64> = work.iter().map(|w| w.step + w.derivative).collect();
@@ -402,17 +408,23 @@ fn main() {
             .and_then(|i| args.get(i + 1).cloned())
     };
     let runs: usize = value("--runs").map_or(3, |v| v.parse().expect("--runs N"));
+    // `--mesh A,R`: every instance meshed n_axial = A, n_radial = R.
+    let resolution = value("--mesh").map(|v| {
+        let (a, r) = v.split_once(',').expect("--mesh N_AXIAL,N_RADIAL");
+        Resolution {
+            n_axial: a.parse().expect("n_axial"),
+            n_radial: r.parse().expect("n_radial"),
+        }
+    });
     if args.iter().any(|a| a == "--in-process") {
-        in_process(value("--only").as_deref());
+        in_process(value("--only").as_deref(), resolution.unwrap_or(LUMPED));
         return;
     }
     let api = load("HillMuscleFE");
-    // `--mesh A,R`: every instance meshed n_axial = A, n_radial = R.
-    let mesh: Vec<(c_uint, i32)> = value("--mesh").map_or(Vec::new(), |v| {
-        let (a, r) = v.split_once(',').expect("--mesh N_AXIAL,N_RADIAL");
+    let mesh: Vec<(c_uint, i32)> = resolution.map_or(Vec::new(), |r| {
         vec![
-            (vr_of("n_axial"), a.parse().expect("n_axial")),
-            (vr_of("n_radial"), r.parse().expect("n_radial")),
+            (vr_of("n_axial"), r.n_axial as i32),
+            (vr_of("n_radial"), r.n_radial as i32),
         ]
     });
     let mesh_name = value("--mesh").map_or("default mesh".to_string(), |v| format!("mesh {v}"));
@@ -470,7 +482,7 @@ fn main() {
     arm_cabi(&api, &mesh, runs);
     println!();
     if mesh.is_empty() && !args.iter().any(|a| a == "--cabi-only") {
-        in_process(None);
+        in_process(None, LUMPED);
     }
     let t: Vec<f64> = (0..runs).map(|_| init(&api, &mesh)).collect();
     println!();

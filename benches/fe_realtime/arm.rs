@@ -13,7 +13,7 @@ use std::ffi::{c_int, c_uint};
 use std::time::Instant;
 
 use hill_muscle::fe::assembly::Attempts;
-use hill_muscle::fe::mesh::{FibreLayout, LUMPED, LUMPED_GRADING};
+use hill_muscle::fe::mesh::{FibreLayout, Resolution, LUMPED_GRADING};
 use hill_muscle::fe::step_map::{
     discretization, end_length, rate_step, Committed, LastStep, Quantity, StepLevel, Substepped,
 };
@@ -182,7 +182,7 @@ pub struct Work {
 /// `initial_activation` of the trace): each step's [`Work`], the force and
 /// d force / d length at the end, and the factorisations the steps and
 /// their derivatives attempted (the initialization's not included).
-pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64, Attempts) {
+pub fn in_process(trace: &Trace, mesh: Resolution) -> (Vec<Work>, f64, f64, Attempts) {
     let p = Params::default();
     let param = |name: &str, default: f64| {
         trace
@@ -199,8 +199,8 @@ pub fn in_process(trace: &Trace) -> (Vec<Work>, f64, f64, Attempts) {
     }
     let (l0, area) = (param("L0", f64::NAN), param("area", f64::NAN));
     let a_init = param("initial_activation", 0.0);
-    let d = discretization(None, l0, area, LUMPED, LUMPED_GRADING, FibreLayout::Axial)
-        .expect("the default mesh");
+    let d =
+        discretization(None, l0, area, mesh, LUMPED_GRADING, FibreLayout::Axial).expect("the mesh");
     let mut state = Committed::initialize(d, &p, area, trace.length0, a_init, 0.0)
         .expect("the arm's initial equilibrium")
         .state;
