@@ -48,9 +48,9 @@
 //! (with `--only NAME`, of that workload alone); `--cabi-only` leaves that
 //! table out (to alternate FMUs of several builds, whose in-process tables
 //! would all be this build's); `--mesh A,R` meshes every instance
-//! n_axial = A, n_radial = R, through the C ABI and with `--in-process`
-//! (the arm's replay then reports how far that mesh's forces are from the
-//! default mesh's trace).
+//! n_axial = A, n_radial = R, through the C ABI and in-process (the arm's
+//! replay then reports how far that mesh's forces are from the default
+//! mesh's trace).
 
 use std::ffi::c_uint;
 use std::time::Instant;
@@ -427,7 +427,9 @@ fn main() {
             (vr_of("n_radial"), r.n_radial as i32),
         ]
     });
-    let mesh_name = value("--mesh").map_or("default mesh".to_string(), |v| format!("mesh {v}"));
+    let mesh_name = resolution.map_or("default mesh".to_string(), |r| {
+        format!("mesh {} × {}", r.n_axial, r.n_radial)
+    });
 
     if let Some(only) = value("--only") {
         if only == "init" {
@@ -481,8 +483,8 @@ fn main() {
     println!();
     arm_cabi(&api, &mesh, runs);
     println!();
-    if mesh.is_empty() && !args.iter().any(|a| a == "--cabi-only") {
-        in_process(None, LUMPED);
+    if !args.iter().any(|a| a == "--cabi-only") {
+        in_process(None, resolution.unwrap_or(LUMPED));
     }
     let t: Vec<f64> = (0..runs).map(|_| init(&api, &mesh)).collect();
     println!();
